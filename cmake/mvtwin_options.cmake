@@ -1,0 +1,14 @@
+# Compiler flags shared by every mvtwin target, applied through an interface target
+# (no global include directories or flags).
+add_library(mvtwin_options INTERFACE)
+target_compile_options(mvtwin_options INTERFACE -Wall -Wextra -Wpedantic -Wshadow
+                       -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Wunused
+                       -Woverloaded-virtual -Wdouble-promotion)
+if(MVTWIN_WERROR)
+  target_compile_options(mvtwin_options INTERFACE -Werror)
+endif()
+if(MVTWIN_SANITIZE)
+  target_compile_options(mvtwin_options INTERFACE -fsanitize=address,undefined
+                         -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  target_link_options(mvtwin_options INTERFACE -fsanitize=address,undefined)
+endif()

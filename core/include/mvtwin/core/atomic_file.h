@@ -1,0 +1,14 @@
+#pragma once
+#include <filesystem>
+#include <functional>
+
+namespace mvtwin {
+
+/// Writes a file so that a crash or an error never leaves it half-written: `write` is given a
+/// temporary path in the same directory; when it returns, the temporary is flushed to disk and
+/// renamed over `path` (atomic on POSIX). If `write` throws, the temporary is removed, the
+/// exception propagates and an existing file at `path` is untouched.
+void write_atomically(const std::filesystem::path& path,
+                      const std::function<void(const std::filesystem::path& tmp)>& write);
+
+}  // namespace mvtwin

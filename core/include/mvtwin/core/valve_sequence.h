@@ -1,0 +1,61 @@
+#pragma once
+#include <array>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mvtwin/core/landmark.h"
+#include "mvtwin/core/leaflet_grid.h"
+
+namespace mvtwin {
+
+/// The valve at one time frame, in physical image space (mm).
+struct ValveFrame {
+  /// Time of the frame in s from the start of the sequence.
+  double time_s = 0.0;
+  /// Landmark positions in mm (storage order of Landmark); an entry that is not observed in
+  /// this frame is NaN and has landmark_observed false.
+  std::array<Eigen::Vector3d, kNumLandmarks> landmarks;
+  std::array<bool, kNumLandmarks> landmark_observed{};
+  /// The annulus curve: ures by 3, the v = 0 row of the grid. Always present, because the
+  /// annulus motion is a boundary condition even in frames whose leaflets are not observed.
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus;
+  /// The LA leaflet surface; empty when this frame's leaflets are not observed (for a virtual
+  /// patient: closed frames that only the simulator can produce).
+  std::optional<LeafletGrid> la_surface;
+
+  Eigen::Vector3d landmark(Landmark l) const { return landmarks[index(l)]; }
+  bool observed(Landmark l) const { return landmark_observed[index(l)]; }
+};
+
+/// A valve over time: what detection produces and what the forward model consumes
+/// (Mansi et al. 2012, Sec. 2.1; SPEC Sec. 2).
+struct ValveSequence {
+  int ures = 0;
+  int vres = 0;
+  std::vector<ValveFrame> frames;
+  /// Index of the end-diastolic frame (last fully open), or -1 if unknown.
+  int end_diastole = -1;
+  /// Index of the first closed frame, or -1 if unknown.
+  int first_closed = -1;
+
+  int num_frames() const { return static_cast<int>(frames.size()); }
+
+  /// Throws mvtwin::Error naming `what` and the first problem: inconsistent resolutions or
+  /// shapes, non-finite coordinates, times not strictly increasing, phase indices out of
+  /// range or out of order, observed landmarks that are NaN, an annulus that differs from the
+  /// v = 0 row of the surface.
+  void validate(const char* what) const;
+
+  /// The same sequence on another (ures, vres) grid; correspondence is kept (the annulus is
+  /// resampled with the same periodic spline as the surface's v = 0 row).
+  ValveSequence resampled(int ures, int vres) const;
+};
+
+/// Resamples a closed annulus curve (n by 3, periodic) to m points by periodic Catmull-Rom.
+Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> resample_closed_curve(
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& curve,
+    int m);
+
+}  // namespace mvtwin

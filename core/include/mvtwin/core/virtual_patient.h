@@ -1,0 +1,37 @@
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "mvtwin/core/patient.h"
+
+namespace mvtwin {
+
+/// Options of the virtual patient generator.
+struct VirtualPatientOptions {
+  /// Grid resolution of the generated anatomy (the "image" resolution).
+  int ures = 30;
+  int vres = 30;
+  /// Force a pathology class; drawn from the cohort mix when empty.
+  std::optional<Pathology> pathology;
+  /// Patient id; "virtual-<seed>" when empty.
+  std::string id;
+  /// Recorded as Provenance::command.
+  std::string command = "mvtwin::make_virtual_patient";
+
+  /// False with a reason in *error for impossible values.
+  bool is_valid(std::string* error) const;
+};
+
+/// Generates a virtual (synthetic) patient from a seed: a saddle annulus that contracts and
+/// deepens from end-diastole to the first closed frame, open leaflets on the (u,v) grid,
+/// papillary tips and their motion, frame times and phases, a pathology class and hidden
+/// tissue parameters, all drawn from the published ranges of SPEC Sec. 8 (sources in
+/// docs/virtual-patients.md). The same seed gives the same patient.
+///
+/// Frames up to end-diastole are geometric. The leaflets of the closing and closed frames are
+/// left missing (leaflet_observed = 0, tips unobserved): they must come from a simulation with
+/// a finer model than the one calibrated (issue 3), never from this geometric generator.
+Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& options = {});
+
+}  // namespace mvtwin

@@ -1,0 +1,403 @@
+#include "mvtwin/core/virtual_patient.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/rng.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/core/version.h"
+
+namespace mvtwin {
+namespace {
+
+using std::numbers::pi;
+using Curve = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+constexpr double kDeg = pi / 180.0;
+
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
+/// Everything drawn for one patient, in the valve frame (x anterior, y anterolateral, z atrium),
+/// at end-diastole unless the name says otherwise.
+struct Draw {
+  Pathology pathology = Pathology::kNormal;
+  // annulus
+  double alpm_diameter = 0, ap_diameter = 0, anterior_fraction = 0, commissure_angle = 0;
+  double height_ratio_ed = 0, height_ratio_closed = 0;
+  double ap_over_intertrigonal = 0;
+  double contraction = 0;  // relative diameter reduction ED -> first closed
+  double apical_excursion = 0;
+  // leaflets
+  double al_length = 0, pl_length = 0, commissure_length = 0;
+  double al_opening = 0, pl_opening = 0, bulge = 0, scallop_depth = 0;
+  // papillary tips
+  double papillary_depth = 0, papillary_separation = 0, papillary_posterior = 0;
+  double papillary_asymmetry = 0, papillary_rise = 0;
+  // timing
+  double heart_rate_bpm = 0;
+  int frames = 0, closure_frames = 0;
+  ValveParameters hidden;
+  std::vector<int> ruptured;
+};
+
+Pathology draw_pathology(Rng& rng) {
+  // Cohort mix: mostly normal and functional MR, as in an MR clinic's referrals.
+  const double r = rng.uniform();
+  if (r < 0.40) return Pathology::kNormal;
+  if (r < 0.55) return Pathology::kProlapseElongatedChordae;
+  if (r < 0.65) return Pathology::kProlapseRupturedChordae;
+  if (r < 0.85) return Pathology::kFunctionalMr;
+  return Pathology::kStiffLeaflets;
+}
+
+Draw draw_anatomy(Rng& rng, Pathology pathology) {
+  Draw d;
+  d.pathology = pathology;
+  // Annulus at end-diastole (SPEC Sec. 8: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
+  // LM/IT 1.44, height/commissural width 10.6 +- 3.7 % in diastole, 13.5 % early systole).
+  d.alpm_diameter = rng.truncated_normal(37.0, 2.5, 31.0, 43.0);
+  d.ap_diameter = d.alpm_diameter * rng.truncated_normal(0.77, 0.035, 0.68, 0.86);
+  d.anterior_fraction = rng.truncated_normal(0.30, 0.03, 0.22, 0.38);
+  d.commissure_angle = rng.truncated_normal(66.0, 4.0, 56.0, 76.0) * kDeg;
+  d.height_ratio_ed = rng.truncated_normal(0.106, 0.025, 0.05, 0.17);
+  d.height_ratio_closed = d.height_ratio_ed + rng.uniform(0.015, 0.045);
+  d.ap_over_intertrigonal = rng.truncated_normal(1.11, 0.05, 0.98, 1.25);
+  d.contraction = rng.uniform(0.04, 0.10);
+  d.apical_excursion = rng.uniform(1.0, 3.0);
+  // Leaflets (radial length at mid-leaflet: anterior 21-26 mm, posterior 14-16 mm).
+  d.al_length = rng.truncated_normal(23.5, 1.3, 20.5, 26.5);
+  d.pl_length = rng.truncated_normal(15.0, 0.7, 13.5, 16.8);
+  d.commissure_length = rng.truncated_normal(9.0, 1.0, 7.0, 11.0);
+  d.al_opening = rng.truncated_normal(70.0, 4.0, 60.0, 80.0) * kDeg;
+  d.pl_opening = rng.truncated_normal(62.0, 4.0, 52.0, 72.0) * kDeg;
+  d.bulge = rng.uniform(0.03, 0.08);
+  d.scallop_depth = rng.uniform(0.0, 0.12);
+  // Papillary tips (26-27 mm below the annulus plane, ~30 mm apart).
+  d.papillary_depth = rng.truncated_normal(26.5, 1.5, 22.0, 31.0);
+  d.papillary_separation = rng.truncated_normal(30.0, 2.5, 24.0, 36.0);
+  d.papillary_posterior = rng.truncated_normal(-4.0, 2.0, -9.0, 1.0);
+  d.papillary_asymmetry = rng.normal(0.0, 1.0);
+  d.papillary_rise = rng.uniform(2.0, 5.0);
+  // Timing: 7-28 frames per cycle, closure over 2-4 frames, ~0.2 s.
+  d.heart_rate_bpm = rng.truncated_normal(72.0, 10.0, 55.0, 100.0);
+  d.frames = rng.uniform_int(7, 28);
+  const double frame_dt = 60.0 / d.heart_rate_bpm / d.frames;
+  const double closure_s = rng.truncated_normal(0.2, 0.04, 0.1, 0.3);
+  d.closure_frames = std::clamp(static_cast<int>(std::lround(closure_s / frame_dt)), 2, 4);
+
+  // Hidden tissue parameters around the paper's generic values.
+  ValveParameters& h = d.hidden;
+  for (double& f : h.restlength_factor) f = rng.truncated_normal(1.0, 0.04, 0.9, 1.1);
+  h.marginal_stiffness_scale = rng.truncated_normal(1.0, 0.1, 0.7, 1.4);
+  h.basal_stiffness_scale = rng.truncated_normal(1.0, 0.1, 0.7, 1.4);
+  h.al_modulus_scale = rng.truncated_normal(1.0, 0.1, 0.7, 1.4);
+  h.pl_modulus_scale = rng.truncated_normal(1.0, 0.1, 0.7, 1.4);
+  h.peak_pressure_mpa = units::mmhg_to_mpa(rng.truncated_normal(120.0, 10.0, 95.0, 150.0));
+
+  switch (pathology) {
+    case Pathology::kNormal:
+      break;
+    case Pathology::kProlapseElongatedChordae: {
+      // Myxomatous: redundant leaflets, mildly dilated annulus, elongated marginal chordae.
+      const double redundancy = rng.uniform(1.05, 1.2);
+      d.al_length *= redundancy;
+      d.pl_length *= redundancy;
+      const double dilation = rng.uniform(1.0, 1.1);
+      d.alpm_diameter *= dilation;
+      d.ap_diameter *= dilation;
+      const int g = rng.uniform() < 0.5 ? 0 : 2;  // marginal group of one papillary side
+      h.restlength_factor[g] = rng.uniform(1.2, 1.5);
+      if (rng.uniform() < 0.3) h.restlength_factor[2 - g] = rng.uniform(1.15, 1.4);
+      break;
+    }
+    case Pathology::kProlapseRupturedChordae: {
+      d.pl_length *= rng.uniform(1.0, 1.15);
+      // 1-3 adjacent marginal chordae torn, centred on the posterior scallops (P1-P3).
+      const int n = rng.uniform_int(1, 3);
+      const int first = rng.uniform_int(16, 26 - n);
+      for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
+      break;
+    }
+    case Pathology::kFunctionalMr: {
+      // Dilated, flattened annulus; papillary tips displaced apically and apart (tethering).
+      const double dilation = rng.uniform(1.15, 1.35);
+      d.alpm_diameter *= dilation;
+      d.ap_diameter *= dilation * rng.uniform(1.0, 1.08);  // rounder
+      d.height_ratio_ed *= rng.uniform(0.6, 0.85);
+      d.height_ratio_closed = d.height_ratio_ed + rng.uniform(0.0, 0.02);
+      d.contraction *= 0.5;  // dysfunctional annulus contracts less
+      d.papillary_depth += rng.uniform(3.0, 7.0);
+      d.papillary_separation += rng.uniform(3.0, 8.0);
+      d.al_length *= rng.uniform(1.0, 1.1);
+      d.pl_length *= rng.uniform(1.0, 1.1);
+      h.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(85.0, 115.0));  // weaker ventricle
+      break;
+    }
+    case Pathology::kStiffLeaflets:
+      h.al_modulus_scale = rng.uniform(1.5, 4.0);
+      h.pl_modulus_scale = rng.uniform(1.5, 4.0);
+      d.al_length *= rng.uniform(0.92, 1.0);
+      d.pl_length *= rng.uniform(0.92, 1.0);
+      break;
+  }
+  return d;
+}
+
+/// Annulus shape at one instant, as a function of the angle theta from the anterior point
+/// (counter-clockwise seen from the atrium).
+struct AnnulusShape {
+  double a_anterior, a_posterior, b, height, commissure_angle, z_shift;
+
+  Eigen::Vector3d at(double theta) const {
+    const double c = std::cos(theta), s = std::sin(theta);
+    // Saddle: highs at the anterior and posterior horns, lows at the commissures. The angle is
+    // warped so that the commissures (at +-commissure_angle) map to +-90 degrees.
+    double t = std::remainder(theta, 2.0 * pi);
+    const double at = std::abs(t);
+    const double warped = at <= commissure_angle
+                              ? at / commissure_angle * (pi / 2)
+                              : pi / 2 + (at - commissure_angle) / (pi - commissure_angle) * (pi / 2);
+    return {(c >= 0 ? a_anterior : a_posterior) * c, b * s,
+            0.5 * height * std::cos(2.0 * warped) + z_shift};
+  }
+};
+
+/// Samples the annulus on the grid: u = 0 at the anterolateral commissure (theta = +tc), the
+/// anterior arc to theta = -tc at u = ures/2, then the posterior arc back; each arc evenly in
+/// arc length. Also returns the theta of every grid point.
+Curve sample_annulus(const AnnulusShape& shape, int ures, std::vector<double>* thetas) {
+  const double tc = shape.commissure_angle;
+  Curve out(ures, 3);
+  thetas->assign(ures, 0.0);
+  auto sample_arc = [&](double theta0, double theta1, int u0, int count) {
+    constexpr int kFine = 4000;
+    std::vector<double> th(kFine + 1), len(kFine + 1, 0.0);
+    for (int i = 0; i <= kFine; ++i) th[i] = theta0 + (theta1 - theta0) * i / kFine;
+    for (int i = 1; i <= kFine; ++i) len[i] = len[i - 1] + (shape.at(th[i]) - shape.at(th[i - 1])).norm();
+    for (int k = 0; k < count; ++k) {
+      const double target = len[kFine] * k / count;
+      const auto it = std::lower_bound(len.begin(), len.end(), target);
+      const size_t i = std::max<size_t>(1, static_cast<size_t>(it - len.begin()));
+      const double f = (target - len[i - 1]) / std::max(len[i] - len[i - 1], 1e-300);
+      const double theta = th[i - 1] + f * (th[i] - th[i - 1]);
+      (*thetas)[u0 + k] = theta;
+      out.row(u0 + k) = shape.at(theta).transpose();
+    }
+  };
+  sample_arc(tc, -tc, 0, ures / 2);                     // anterior
+  sample_arc(-tc, -(2.0 * pi - tc), ures / 2, ures / 2);  // posterior
+  return out;
+}
+
+/// Open leaflet surface hanging from the annulus into the ventricle.
+LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double opening_scale) {
+  const int ures = static_cast<int>(annulus.rows());
+  LeafletGrid::Points P(static_cast<Eigen::Index>(ures) * vres, 3);
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  for (int u = 0; u < ures; ++u) {
+    const bool anterior = u < ures / 2;
+    const double s = anterior ? static_cast<double>(u) / (ures / 2)
+                              : static_cast<double>(u - ures / 2) / (ures / 2);
+    double g = std::pow(std::sin(pi * s), anterior ? 0.5 : 0.4);
+    if (!anterior) {  // clefts between the posterior scallops P1/P2/P3
+      g *= 1.0 - d.scallop_depth * (std::exp(-std::pow((s - 1.0 / 3) / 0.04, 2)) +
+                                    std::exp(-std::pow((s - 2.0 / 3) / 0.04, 2)));
+    }
+    const double leaflet_length = anterior ? d.al_length : d.pl_length;
+    const double L = d.commissure_length + (leaflet_length - d.commissure_length) * g;
+    const double phi_leaf = anterior ? d.al_opening : d.pl_opening;
+    const double phi_c = 0.5 * (d.al_opening + d.pl_opening);
+    const double phi = std::min((phi_c + (phi_leaf - phi_c) * g) * opening_scale, 88.0 * kDeg);
+
+    const Eigen::Vector3d A = annulus.row(u).transpose();
+    const Eigen::Vector3d tangent =
+        (annulus.row((u + 1) % ures) - annulus.row((u + ures - 1) % ures)).transpose();
+    Eigen::Vector3d inward = tangent.cross(z);
+    inward.z() = 0.0;
+    inward.normalize();
+    const Eigen::Vector3d dir = std::cos(phi) * inward - std::sin(phi) * z;
+    const Eigen::Vector3d bulge = std::sin(phi) * inward + std::cos(phi) * z;
+    for (int v = 0; v < vres; ++v) {
+      const double t = static_cast<double>(v) / (vres - 1);
+      P.row(static_cast<Eigen::Index>(v) * ures + u) =
+          (A + L * (t * dir + d.bulge * std::sin(pi * t) * bulge)).transpose();
+    }
+  }
+  return LeafletGrid(ures, vres, std::move(P));
+}
+
+Eigen::Matrix4d draw_pose(Rng& rng) {
+  // A probe-like placement: the valve about 7 cm deep, rotated by up to 30 degrees.
+  Eigen::Vector3d axis(rng.normal(), rng.normal(), rng.normal());
+  axis.normalize();
+  const double angle = rng.uniform(0.0, 30.0) * kDeg;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  pose.topLeftCorner<3, 3>() = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+  pose.topRightCorner<3, 1>() = Eigen::Vector3d(rng.normal(0, 5), rng.normal(0, 5), 70.0 + rng.normal(0, 5));
+  return pose;
+}
+
+}  // namespace
+
+bool VirtualPatientOptions::is_valid(std::string* error) const {
+  if (ures < 8 || ures % 2 != 0) {
+    *error = "ures must be even and at least 8 (got " + std::to_string(ures) + ")";
+    return false;
+  }
+  if (vres < 3) {
+    *error = "vres must be at least 3 (got " + std::to_string(vres) + ")";
+    return false;
+  }
+  return true;
+}
+
+Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& options) {
+  std::string error;
+  if (!options.is_valid(&error)) throw Error("virtual patient: " + error);
+  Rng rng(seed);
+  const Pathology pathology = options.pathology ? *options.pathology : draw_pathology(rng);
+  const Draw d = draw_anatomy(rng, pathology);
+  const Eigen::Matrix4d pose = draw_pose(rng);
+  const int ures = options.ures, vres = options.vres;
+
+  // Phases: diastolic frames first; the closure takes `closure_frames` frames after
+  // end-diastole; then systole.
+  const double period = 60.0 / d.heart_rate_bpm;
+  const double frame_dt = period / d.frames;
+  const int ed = std::max(1, d.frames - 1 - std::max(d.closure_frames,
+                                                     static_cast<int>(std::lround(0.35 * d.frames))));
+  const int fc = ed + d.closure_frames;
+  const double t_ed = ed * frame_dt, t_fc = fc * frame_dt, t_end = (d.frames - 1) * frame_dt;
+
+  const double intertrigonal = d.ap_diameter / d.ap_over_intertrigonal;
+  const double b_ed = 0.5 * d.alpm_diameter;
+
+  Patient p;
+  p.id = options.id.empty() ? "virtual-" + std::to_string(seed) : options.id;
+  p.synthetic = true;
+  p.provenance.version = kVersion;
+  p.provenance.command = options.command;
+  p.provenance.created_utc = utc_now_iso8601();
+  p.provenance.seed = seed;
+  p.provenance.source = "mvtwin virtual patient generator (geometric open frames; SPEC Sec. 8)";
+  ValveSequence& seq = p.sequence;
+  seq.ures = ures;
+  seq.vres = vres;
+  seq.end_diastole = ed;
+  seq.first_closed = fc;
+
+  const Eigen::Matrix3d R = pose.topLeftCorner<3, 3>();
+  const Eigen::Vector3d T = pose.topRightCorner<3, 1>();
+  auto to_image = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + T; };
+
+  for (int f = 0; f < d.frames; ++f) {
+    const double t = f * frame_dt;
+    // Systolic activation: 0 in diastole, rising to 1 at the first closed frame (the annulus is
+    // smallest at 11-13 % of systole), then the annulus re-enlarges towards end-systole.
+    double a = 0.0;
+    if (t > t_ed && t <= t_fc) a = smoothstep((t - t_ed) / (t_fc - t_ed));
+    if (t > t_fc) a = 1.0 - 0.6 * (t - t_fc) / std::max(t_end - t_fc, 1e-9);
+    const double k = 1.0 - d.contraction * a;
+    const double height_ratio = d.height_ratio_ed + (d.height_ratio_closed - d.height_ratio_ed) * a;
+    AnnulusShape shape{d.anterior_fraction * d.ap_diameter * k,
+                       (1.0 - d.anterior_fraction) * d.ap_diameter * k,
+                       b_ed * k,
+                       0.0,
+                       d.commissure_angle,
+                       -d.apical_excursion * a};
+    // Saddle height relative to the commissural width (as in the echo literature).
+    shape.height = height_ratio * 2.0 * shape.b * std::sin(d.commissure_angle);
+    std::vector<double> thetas;
+    const Curve annulus_v = sample_annulus(shape, ures, &thetas);
+
+    ValveFrame fr;
+    fr.time_s = t;
+    Curve annulus(ures, 3);
+    for (int u = 0; u < ures; ++u) annulus.row(u) = to_image(annulus_v.row(u).transpose()).transpose();
+    fr.annulus = annulus;
+
+    auto set = [&](Landmark l, const Eigen::Vector3d& x_valve) {
+      fr.landmarks[index(l)] = to_image(x_valve);
+      fr.landmark_observed[index(l)] = true;
+    };
+    const double trigone_theta = std::asin(std::min(0.5 * intertrigonal * k / shape.b, 0.99));
+    set(Landmark::kAnterolateralTrigone, shape.at(trigone_theta));
+    set(Landmark::kPosteromedialTrigone, shape.at(-trigone_theta));
+    set(Landmark::kPosteriorAnnulusMidpoint, annulus_v.row(3 * ures / 4).transpose());
+    set(Landmark::kAnterolateralCommissure, annulus_v.row(0).transpose());
+    set(Landmark::kPosteromedialCommissure, annulus_v.row(ures / 2).transpose());
+    const double sep = 0.5 * d.papillary_separation * (1.0 - 0.05 * a);
+    const double pz = shape.z_shift - d.papillary_depth + d.papillary_rise * a;
+    set(Landmark::kAnterolateralPapillaryTip,
+        {d.papillary_posterior + 0.5 * d.papillary_asymmetry, sep, pz});
+    set(Landmark::kPosteromedialPapillaryTip,
+        {d.papillary_posterior - 0.5 * d.papillary_asymmetry, -sep, pz - 0.5 * d.papillary_asymmetry});
+
+    for (Landmark l : {Landmark::kAnteriorLeafletTip, Landmark::kPosteriorLeafletTip}) {
+      fr.landmarks[index(l)].setConstant(std::numeric_limits<double>::quiet_NaN());
+      fr.landmark_observed[index(l)] = false;
+    }
+    if (f <= ed) {
+      // Open frames: widest in early diastole, a little less open at end-diastole.
+      const double opening_scale = 1.0 + 0.08 * (1.0 - t / std::max(t_ed, 1e-9));
+      LeafletGrid g = open_leaflets(d, annulus_v, vres, opening_scale);
+      for (Eigen::Index i = 0; i < g.points().rows(); ++i) {
+        g.points().row(i) = to_image(g.points().row(i).transpose()).transpose();
+      }
+      g.points().topRows(ures) = annulus;  // exact equality with the annulus curve
+      set(Landmark::kAnteriorLeafletTip, R.transpose() * (g.sample(0.25, 1.0) - T));
+      set(Landmark::kPosteriorLeafletTip, R.transpose() * (g.sample(0.75, 1.0) - T));
+      fr.la_surface = std::move(g);
+    }
+    seq.frames.push_back(std::move(fr));
+  }
+
+  VirtualTruth truth;
+  truth.pathology = pathology;
+  truth.parameters = d.hidden;
+  truth.ruptured_marginal_chordae = d.ruptured;
+  truth.pose = pose;
+  truth.closed_frames =
+      "missing: frames after end_diastole have no leaflet surface yet; they must be simulated with "
+      "the hidden parameters by a finer model than the calibration model (forward simulator, "
+      "issue 3)";
+  truth.anatomy = {
+      {"alpm_diameter_ed_mm", d.alpm_diameter},
+      {"ap_diameter_ed_mm", d.ap_diameter},
+      {"anterior_fraction_of_ap", d.anterior_fraction},
+      {"commissure_angle_deg", d.commissure_angle / kDeg},
+      {"height_ratio_ed", d.height_ratio_ed},
+      {"height_ratio_first_closed", d.height_ratio_closed},
+      {"ap_over_intertrigonal", d.ap_over_intertrigonal},
+      {"annulus_contraction", d.contraction},
+      {"annulus_apical_excursion_mm", d.apical_excursion},
+      {"al_length_mm", d.al_length},
+      {"pl_length_mm", d.pl_length},
+      {"commissure_leaflet_length_mm", d.commissure_length},
+      {"al_opening_deg", d.al_opening / kDeg},
+      {"pl_opening_deg", d.pl_opening / kDeg},
+      {"leaflet_bulge", d.bulge},
+      {"scallop_depth", d.scallop_depth},
+      {"papillary_depth_mm", d.papillary_depth},
+      {"papillary_separation_mm", d.papillary_separation},
+      {"papillary_posterior_offset_mm", d.papillary_posterior},
+      {"papillary_rise_mm", d.papillary_rise},
+      {"heart_rate_bpm", d.heart_rate_bpm},
+      {"frames_per_cycle", static_cast<double>(d.frames)},
+      {"closure_frames", static_cast<double>(d.closure_frames)},
+      {"closure_duration_s", t_fc - t_ed},
+  };
+  p.truth = std::move(truth);
+  seq.validate(("virtual patient " + p.id).c_str());
+  return p;
+}
+
+}  // namespace mvtwin

@@ -1,0 +1,216 @@
+#include "mvtwin/core/virtual_patient.h"
+
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/annulus_measures.h"
+#include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+
+namespace mvtwin {
+namespace {
+
+TEST(VirtualPatient, SameSeedSamePatientOtherSeedOther) {
+  const Patient a = make_virtual_patient(5), b = make_virtual_patient(5), c = make_virtual_patient(6);
+  ASSERT_EQ(a.sequence.num_frames(), b.sequence.num_frames());
+  for (int f = 0; f < a.sequence.num_frames(); ++f) {
+    EXPECT_EQ(a.sequence.frames[f].annulus, b.sequence.frames[f].annulus);
+    if (a.sequence.frames[f].la_surface) {
+      EXPECT_EQ(a.sequence.frames[f].la_surface->points(), b.sequence.frames[f].la_surface->points());
+    }
+  }
+  EXPECT_EQ(a.truth->parameters.restlength_factor, b.truth->parameters.restlength_factor);
+  EXPECT_NE(a.sequence.frames[0].annulus, c.sequence.frames[0].annulus);
+}
+
+TEST(VirtualPatient, IsSyntheticAndLeavesClosedFramesToTheSimulator) {
+  const Patient p = make_virtual_patient(9);
+  EXPECT_TRUE(p.synthetic);
+  ASSERT_TRUE(p.truth);
+  EXPECT_EQ(p.provenance.seed, 9u);
+  const ValveSequence& s = p.sequence;
+  ASSERT_GE(s.end_diastole, 1);
+  ASSERT_GT(s.first_closed, s.end_diastole);
+  for (int f = 0; f < s.num_frames(); ++f) {
+    EXPECT_EQ(s.frames[f].la_surface.has_value(), f <= s.end_diastole) << f;
+    EXPECT_EQ(s.frames[f].observed(Landmark::kAnteriorLeafletTip), f <= s.end_diastole);
+    EXPECT_TRUE(s.frames[f].observed(Landmark::kAnterolateralPapillaryTip));  // boundary conditions
+  }
+  EXPECT_NE(p.truth->closed_frames.find("missing"), std::string::npos);
+}
+
+TEST(VirtualPatient, OptionsAreValidated) {
+  VirtualPatientOptions o;
+  o.ures = 9;
+  std::string err;
+  EXPECT_FALSE(o.is_valid(&err));
+  EXPECT_THROW(make_virtual_patient(1, o), Error);
+  EXPECT_THROW(pathology_from_name("flu"), Error);
+}
+
+// Distance between the free edges of two columns at the same fraction from the anterolateral
+// commissure (anterior column u, posterior column ures-u).
+double free_edge_gap(const LeafletGrid& g, int u) {
+  return (g.at(u, g.vres() - 1) - g.at(g.ures() - u, g.vres() - 1)).norm();
+}
+
+TEST(VirtualPatient, OpenValveCanClose) {
+  for (int seed = 100; seed < 160; ++seed) {
+    const Patient p = make_virtual_patient(seed);
+    const ValveSequence& s = p.sequence;
+    const LeafletGrid& g = *s.frames[s.end_diastole].la_surface;
+    const ValveFrame& closed = s.frames[s.first_closed];
+    const int U = g.ures();
+    for (int u = 1; u < U / 2; ++u) {
+      // Free edges are apart at end-diastole (the valve is open) ...
+      EXPECT_GT(free_edge_gap(g, u), 1.0) << "seed " << seed << " u " << u;
+      // ... and facing leaflets are together longer than the annulus chord they must span at
+      // the first closed frame (the coaptation reserve).
+      const double chord = (closed.annulus.row(u) - closed.annulus.row(U - u)).norm();
+      EXPECT_GT(g.radial_length(u) + g.radial_length(U - u) - chord, 2.0) << "seed " << seed << " u " << u;
+    }
+    EXPECT_GT(free_edge_gap(g, U / 4), 8.0) << "seed " << seed;
+    // Leaflets hang into the ventricle.
+    const TipToAnnulusPlane t = tip_to_annulus_plane(s.frames[s.end_diastole]);
+    EXPECT_LT(t.anterior_mm, -5.0);
+    EXPECT_LT(t.posterior_mm, -5.0);
+  }
+}
+
+struct Sample {
+  std::vector<double> v;
+  void add(double x) { v.push_back(x); }
+  double mean() const {
+    double s = 0;
+    for (double x : v) s += x;
+    return s / v.size();
+  }
+  double sd() const {
+    const double m = mean();
+    double s = 0;
+    for (double x : v) s += (x - m) * (x - m);
+    return std::sqrt(s / v.size());
+  }
+};
+
+// Statistics over 200 virtual patients against the published ranges of SPEC Sec. 8. Normal
+// anatomy is checked on the patients without a dilated annulus (normal, stiff leaflets,
+// ruptured chordae); the functional-MR class must be dilated relative to them.
+TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
+  std::map<std::string, Sample> s;
+  Sample ap_fmr, ap_normal;
+  int counts[kNumPathologies] = {};
+  for (int i = 0; i < 200; ++i) {
+    const Patient p = make_virtual_patient(1000 + i);
+    const ValveSequence& q = p.sequence;
+    const Pathology path = p.truth->pathology;
+    counts[static_cast<int>(path)]++;
+    const ValveFrame& ed = q.frames[q.end_diastole];
+    const ValveFrame& fc = q.frames[q.first_closed];
+    const AnnulusMeasures med = annulus_measures(ed), mfc = annulus_measures(fc);
+    s["frames"].add(q.num_frames());
+    s["closure_frames"].add(q.first_closed - q.end_diastole);
+    s["closure_s"].add(fc.time_s - ed.time_s);
+    if (path == Pathology::kFunctionalMr) {
+      ap_fmr.add(mfc.ap_diameter_mm);
+      continue;
+    }
+    if (path == Pathology::kProlapseElongatedChordae) continue;  // redundant, mildly dilated
+    ap_normal.add(mfc.ap_diameter_mm);
+    s["ap_fc"].add(mfc.ap_diameter_mm);
+    s["alpm_fc"].add(mfc.alpm_diameter_mm);
+    s["commissural_fc"].add(mfc.commissural_width_mm);
+    s["area3d_fc_cm2"].add(units::mm2_to_cm2(mfc.area_3d_mm2));
+    s["perimeter_fc"].add(mfc.perimeter_mm);
+    s["height_fc"].add(mfc.height_mm);
+    s["height_ratio_ed"].add(med.height_mm / med.commissural_width_mm);
+    s["height_ratio_fc"].add(mfc.height_mm / mfc.commissural_width_mm);
+    s["ap_over_it"].add(mfc.ap_diameter_mm / mfc.intertrigonal_mm);
+    s["alpm_over_it"].add(mfc.alpm_diameter_mm / mfc.intertrigonal_mm);
+    s["area_shrink_ed_to_fc"].add(mfc.area_3d_mm2 / med.area_3d_mm2);
+    s["post_over_ant_arc"].add(med.posterior_arc_mm / med.anterior_arc_mm);
+    const LeafletGrid& g = *ed.la_surface;
+    if (path != Pathology::kStiffLeaflets && path != Pathology::kProlapseRupturedChordae) {
+      s["al_length"].add(g.radial_length_at(0.25));
+      s["pl_length"].add(g.radial_length_at(0.75));
+    }
+    s["leaflet_over_annulus_area"].add(g.triangulate().area() / med.area_3d_mm2);
+    const AnnulusPlane plane = annulus_plane(ed);
+    const Eigen::Vector3d pal = ed.landmark(Landmark::kAnterolateralPapillaryTip);
+    const Eigen::Vector3d ppm = ed.landmark(Landmark::kPosteromedialPapillaryTip);
+    s["papillary_depth"].add(-0.5 * (plane.signed_distance(pal) + plane.signed_distance(ppm)));
+    s["papillary_separation"].add((pal - ppm).norm());
+    // Marginal chordae (SPEC Sec. 3: 28 on the free edge) to the tip on their side.
+    const int U = g.ures();
+    for (int k = 0; k < 28; ++k) {
+      const double su = static_cast<double>(k) / 28.0;
+      const Eigen::Vector3d ins = g.sample(su, 1.0);
+      const bool anterolateral = su < 0.25 || su >= 0.75;
+      s["chordae_length_ed"].add((ins - (anterolateral ? pal : ppm)).norm());
+    }
+    (void)U;
+  }
+  // name, low, high (for the mean), source
+  struct Range {
+    const char* name;
+    double lo, hi;
+    const char* published;
+  };
+  const std::vector<Range> ranges = {
+      {"frames", 7, 28, "7-28 frames per sequence (paper)"},
+      {"closure_frames", 2, 4, "closure over 2-4 frames (paper)"},
+      {"closure_s", 0.1, 0.3, "about 0.2 s (paper)"},
+      {"ap_fc", 24, 31, "AP 24->29 mm early->end systole; 30.8+-4.4 (PMC7368231; Sonne)"},
+      {"alpm_fc", 34, 40, "AL-PM 35->39 mm (PMC7368231)"},
+      {"commissural_fc", 30.2, 40, "commissural 35.1+-4.9 mm (Sonne)"},
+      {"area3d_fc_cm2", 7.0, 10.5, "3D area 7.7->9.8 cm^2 (PMC7368231)"},
+      {"perimeter_fc", 98, 120, "circumference 103->116 mm (PMC7368231)"},
+      {"height_fc", 3.5, 7.5, "height 5.9->6.8 mm (PMC7368231); 13.5 % of commissural width"},
+      {"height_ratio_ed", 0.069, 0.143, "10.6+-3.7 % in diastole (Topilsky)"},
+      {"height_ratio_fc", 0.095, 0.175, "13.5+-4.0 % early systole (Topilsky)"},
+      {"ap_over_it", 1.03, 1.19, "AP/intertrigonal ~1.11 (Noack 2019)"},
+      {"alpm_over_it", 1.34, 1.54, "lateromedial/intertrigonal ~1.44 (Noack 2019)"},
+      {"area_shrink_ed_to_fc", 0.75, 0.97, "annulus smallest at 11-13 % of systole (PMC7368231)"},
+      {"post_over_ant_arc", 1.6, 2.4, "posterior annulus ~2x anterior (anatomy)"},
+      {"al_length", 21, 26, "anterior leaflet 21-26 mm (mvtool metrics)"},
+      {"pl_length", 14, 16, "posterior leaflet 14-16 mm (mvtool metrics)"},
+      {"leaflet_over_annulus_area", 1.8, 3.0, "~2.5x annulus area (anatomy texts)"},
+      {"papillary_depth", 24, 29, "26-27 mm below the annulus plane (heart_valves CT)"},
+      {"papillary_separation", 26, 34, "tips ~30 mm apart (heart_valves CT)"},
+      {"chordae_length_ed", 8.8, 16.8, "12.8+-4.0 / 12.3+-3.9 mm (Kavitha 2014)"},
+  };
+  std::cout << std::fixed << std::setprecision(3);
+  std::cout << "virtual cohort of 200: normal " << counts[0] << ", prolapse elongated " << counts[1]
+            << ", prolapse ruptured " << counts[2] << ", functional MR " << counts[3] << ", stiff "
+            << counts[4] << "\n";
+  for (const Range& r : ranges) {
+    const Sample& x = s.at(r.name);
+    std::cout << std::setw(28) << r.name << "  " << std::setw(8) << x.mean() << " +- " << std::setw(7)
+              << x.sd() << "   accepted mean [" << r.lo << ", " << r.hi << "]   published: " << r.published << "\n";
+    EXPECT_GE(x.mean(), r.lo) << r.name;
+    EXPECT_LE(x.mean(), r.hi) << r.name;
+  }
+  for (double f : s.at("closure_frames").v) {
+    EXPECT_GE(f, 2);
+    EXPECT_LE(f, 4);
+  }
+  for (double f : s.at("frames").v) {
+    EXPECT_GE(f, 7);
+    EXPECT_LE(f, 28);
+  }
+  // Every class is represented; functional MR is dilated.
+  for (int c : counts) EXPECT_GT(c, 10);
+  std::cout << "AP at first closed: functional MR " << ap_fmr.mean() << " mm vs others " << ap_normal.mean() << " mm\n";
+  EXPECT_GT(ap_fmr.mean(), 1.12 * ap_normal.mean());
+}
+
+}  // namespace
+}  // namespace mvtwin

@@ -1,0 +1,137 @@
+// End-to-end tests of the mvtwin command line, run as a user would.
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/patient_file.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CmdResult {
+  int code;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("mvtwin_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  CmdResult run(const std::string& args) {
+    const std::string o = (dir_ / "stdout.txt").string(), e = (dir_ / "stderr.txt").string();
+    const std::string cmd = std::string(MVTWIN_BINARY) + " " + args + " > " + o + " 2> " + e;
+    const int status = std::system(cmd.c_str());
+    auto slurp = [](const std::string& p) {
+      std::ifstream f(p);
+      std::stringstream s;
+      s << f.rdbuf();
+      return s.str();
+    };
+    return {WEXITSTATUS(status), slurp(o), slurp(e)};
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
+  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg"}) {
+    const CmdResult r = run(std::string(c) + " --help");
+    EXPECT_EQ(r.code, 0) << c;
+    EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n" << r.out;
+  }
+}
+
+TEST_F(Cli, PhantomInfoExport) {
+  CmdResult r = run("phantom --seed 4 --out " + path("p.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("SYNTHETIC"), std::string::npos);
+  r = run("info " + path("p.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("[SYNTHETIC: virtual patient]"), std::string::npos);
+  EXPECT_NE(r.out.find("end-diastole (frame"), std::string::npos);
+  EXPECT_NE(r.out.find("hidden    pathology"), std::string::npos);
+  r = run("export " + path("p.h5") + " --vtk " + path("vtk"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "vtk" / "la_surface.pvd"));
+  // Refuses to overwrite without --force; nothing is lost.
+  r = run("phantom --seed 5 --out " + path("p.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("already exists"), std::string::npos);
+  EXPECT_EQ(mvtwin::read_patient(path("p.h5")).provenance.seed, 4u);
+  // Same seed, same result.
+  ASSERT_EQ(run("phantom --seed 4 --out " + path("q.h5")).code, 0);
+  const auto a = mvtwin::read_patient(path("p.h5")), b = mvtwin::read_patient(path("q.h5"));
+  EXPECT_EQ(a.sequence.frames[0].la_surface->points(), b.sequence.frames[0].la_surface->points());
+}
+
+TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {
+  CmdResult r = run("info " + path("missing.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("missing.h5: no such file"), std::string::npos) << r.err;
+  {
+    std::ofstream(path("junk.h5")) << "junk";
+  }
+  r = run("info " + path("junk.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("not an HDF5 file"), std::string::npos) << r.err;
+  r = run("phantom --seed 1 --ures 9 --out " + path("x.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("ures must be even"), std::string::npos) << r.err;
+  r = run("phantom --pathology flu --out " + path("x.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("unknown pathology 'flu'"), std::string::npos) << r.err;
+  r = run("import-seg " + path("none.nii.gz") + " --out " + path("x.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("none.nii.gz: no such file"), std::string::npos) << r.err;
+  r = run("frobnicate");
+  EXPECT_NE(r.code, 0);
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+}
+
+TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
+  CmdResult r = run("cohort --n 4 --seed 3 --out " + path("c"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
+  const auto before = mvtwin::read_patient(path("c/patient_0002.h5"));
+  fs::remove(dir_ / "c" / "patient_0001.h5");
+  {
+    std::ofstream(path("c/patient_0003.h5")) << "damaged";
+  }
+  r = run("cohort --n 4 --seed 3 --out " + path("c"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("made 2, kept 2, failed 0"), std::string::npos) << r.out;
+  EXPECT_NO_THROW(mvtwin::read_patient(path("c/patient_0003.h5")));
+  const auto after = mvtwin::read_patient(path("c/patient_0002.h5"));
+  EXPECT_EQ(before.provenance.created_utc, after.provenance.created_utc);  // kept, not remade
+  EXPECT_TRUE(fs::exists(dir_ / "c" / "cohort.json"));
+}
+
+TEST_F(Cli, ImportRealSegmentation) {
+  const fs::path seg = fs::path(MVTWIN_SHARED_DATA_DIR) / "mvtool-008" / "008_gt.nii.gz";
+  if (!fs::exists(seg)) GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
+  CmdResult r = run("import-seg " + seg.string() + " --out " + path("008.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("fitted surface -> mask boundary"), std::string::npos);
+  r = run("info " + path("008.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.find("SYNTHETIC"), std::string::npos);  // real data is never labelled synthetic
+  r = run("import-seg " + seg.string() + " --labels 1,2,9 --out " + path("bad.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("label 9 (posterior leaflet) has 0 voxels"), std::string::npos) << r.err;
+}
+
+}  // namespace

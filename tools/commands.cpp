@@ -1,0 +1,331 @@
+#include "commands.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "mvtwin/core/annulus_measures.h"
+#include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/nifti.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/patient_vtk.h"
+#include "mvtwin/core/segmentation_import.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/core/virtual_patient.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+namespace {
+
+void refuse_overwrite(const fs::path& p, bool force) {
+  if (fs::exists(p) && !force) {
+    throw Error(p.string() + ": already exists (use --force to replace it)");
+  }
+}
+
+/// Seed of patient i of a cohort: splitmix64 of (seed, i), so cohorts never share patients.
+std::uint64_t cohort_seed(std::uint64_t seed, int i) {
+  std::uint64_t z = seed + 0x9E3779B97F4A7C15ull * static_cast<std::uint64_t>(i + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return (z ^ (z >> 31)) & 0x7FFFFFFFFFFFFFFFull;  // positive when stored as int64
+}
+
+std::string fmt(double v, int prec = 2) {
+  if (std::isnan(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+void print_info(const Patient& p, std::ostream& os) {
+  const ValveSequence& s = p.sequence;
+  os << "patient   " << p.id << (p.synthetic ? "   [SYNTHETIC: virtual patient]" : "") << "\n";
+  os << "source    " << p.provenance.source << "\n";
+  os << "made by   mvtwin " << p.provenance.version << ", " << p.provenance.created_utc
+     << (p.provenance.seed ? ", seed " + std::to_string(p.provenance.seed) : "") << "\n";
+  os << "command   " << p.provenance.command << "\n";
+  int observed = 0;
+  for (const auto& f : s.frames) observed += f.la_surface.has_value();
+  os << "sequence  " << s.num_frames() << " frames, t = " << fmt(s.frames.front().time_s, 3)
+     << " .. " << fmt(s.frames.back().time_s, 3) << " s; grid ures=" << s.ures
+     << " vres=" << s.vres << "; leaflets observed in " << observed << " frames\n";
+  os << "phases    end-diastole = "
+     << (s.end_diastole >= 0 ? "frame " + std::to_string(s.end_diastole) : "unknown")
+     << ", first closed = "
+     << (s.first_closed >= 0 ? "frame " + std::to_string(s.first_closed) : "unknown");
+  if (s.end_diastole >= 0 && s.first_closed >= 0) {
+    os << " (closure " << fmt(s.frames[s.first_closed].time_s - s.frames[s.end_diastole].time_s, 3)
+       << " s)";
+  }
+  os << "\n";
+  auto frame_report = [&](int f, const char* label) {
+    if (f < 0) return;
+    const ValveFrame& fr = s.frames[f];
+    const AnnulusMeasures m = annulus_measures(fr);
+    os << label << " (frame " << f << ")\n";
+    os << "  annulus   AP " << fmt(m.ap_diameter_mm, 1) << " mm, AL-PM " << fmt(m.alpm_diameter_mm, 1)
+       << " mm, commissural width " << fmt(m.commissural_width_mm, 1) << " mm, intertrigonal "
+       << fmt(m.intertrigonal_mm, 1) << " mm\n";
+    os << "            perimeter " << fmt(m.perimeter_mm, 1) << " mm, 3D area "
+       << fmt(units::mm2_to_cm2(m.area_3d_mm2)) << " cm^2, height " << fmt(m.height_mm, 1)
+       << " mm (" << fmt(100 * m.height_mm / m.commissural_width_mm, 1)
+       << " % of commissural width), arcs ant/post " << fmt(m.anterior_arc_mm, 1) << "/"
+       << fmt(m.posterior_arc_mm, 1) << " mm\n";
+    if (fr.la_surface) {
+      const double area = fr.la_surface->triangulate().area();
+      os << "  leaflets  AL length " << fmt(fr.la_surface->radial_length_at(0.25), 1)
+         << " mm, PL length " << fmt(fr.la_surface->radial_length_at(0.75), 1)
+         << " mm, LA surface area " << fmt(units::mm2_to_cm2(area)) << " cm^2 ("
+         << fmt(area / m.area_3d_mm2) << " x annulus)\n";
+      const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
+      os << "  tips      to annulus plane: anterior " << fmt(t.anterior_mm, 1) << " mm, posterior "
+         << fmt(t.posterior_mm, 1) << " mm (+ = atrial; plane from "
+         << (t.plane_from_landmarks ? "trigones + posterior mid-point" : "least squares") << ")\n";
+    } else {
+      os << "  leaflets  not observed in this frame\n";
+    }
+  };
+  frame_report(s.end_diastole, "end-diastole");
+  frame_report(s.first_closed, "first closed");
+  if (s.end_diastole < 0 && s.first_closed < 0) frame_report(0, "frame 0");
+  if (!p.images.empty()) {
+    const auto& im = p.images.front();
+    os << "images    " << p.images.size() << " volume(s), " << im.size[0] << "x" << im.size[1]
+       << "x" << im.size[2] << " voxels of " << fmt(im.spacing[0]) << "x" << fmt(im.spacing[1])
+       << "x" << fmt(im.spacing[2]) << " mm\n";
+  }
+  if (p.truth) {
+    const VirtualTruth& t = *p.truth;
+    os << "hidden    pathology " << pathology_name(t.pathology) << "; ";
+    t.parameters.for_each([&](const std::string& n, double v, const char* unit) {
+      if (n == "peak_pressure") {
+        os << n << " " << fmt(units::mpa_to_mmhg(v), 1) << " mmHg";
+      } else {
+        os << n << " " << fmt(v, 3) << (std::string(unit) == "1" ? "" : std::string(" ") + unit) << "; ";
+      }
+    });
+    os << "\n";
+    if (!t.ruptured_marginal_chordae.empty()) {
+      os << "          ruptured marginal chordae:";
+      for (int k : t.ruptured_marginal_chordae) os << " " << k;
+      os << "\n";
+    }
+    os << "closed    " << t.closed_frames << "\n";
+  }
+}
+
+}  // namespace
+
+void register_commands(CLI::App& app, Context& ctx) {
+  // ---- phantom ---------------------------------------------------------------------------------
+  {
+    auto* cmd = app.add_subcommand("phantom", "Make one virtual (synthetic) patient");
+    cmd->footer("Example:\n  mvtwin phantom --seed 1 --out patient.h5\n  mvtwin phantom --seed 7 --pathology functional_mr --out fmr.h5");
+    auto seed = std::make_shared<std::uint64_t>(1);
+    auto out = std::make_shared<std::string>();
+    auto pathology = std::make_shared<std::string>();
+    auto opts = std::make_shared<VirtualPatientOptions>();
+    auto force = std::make_shared<bool>(false);
+    cmd->add_option("--seed", *seed, "random seed (same seed, same patient)")->default_val(1);
+    cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
+    cmd->add_option("--pathology", *pathology,
+                    "normal | prolapse_elongated_chordae | prolapse_ruptured_chordae | functional_mr | stiff_leaflets (default: drawn)");
+    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
+    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+    cmd->add_flag("--force", *force, "replace an existing file");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        refuse_overwrite(*out, *force);
+        VirtualPatientOptions o = *opts;
+        if (!pathology->empty()) o.pathology = pathology_from_name(*pathology);
+        o.command = ctx.command_line;
+        const Patient p = make_virtual_patient(*seed, o);
+        write_patient(*out, p);
+        std::cout << "wrote " << *out << ": virtual patient " << p.id << " ("
+                  << pathology_name(p.truth->pathology) << ", " << p.sequence.num_frames()
+                  << " frames, SYNTHETIC)\n";
+        return 0;
+      };
+    });
+  }
+  // ---- cohort ----------------------------------------------------------------------------------
+  {
+    auto* cmd = app.add_subcommand("cohort", "Make many virtual patients (resumable)");
+    cmd->footer("Example:\n  mvtwin cohort --n 25 --seed 2026 --out cohort/\n"
+                "Existing valid patient files are kept (the run resumes); a patient that fails is\n"
+                "reported in cohort.json and the others go on.");
+    auto n = std::make_shared<int>(25);
+    auto seed = std::make_shared<std::uint64_t>(1);
+    auto out = std::make_shared<std::string>();
+    auto opts = std::make_shared<VirtualPatientOptions>();
+    cmd->add_option("--n", *n, "number of patients")->default_val(25)->check(CLI::Range(1, 100000));
+    cmd->add_option("--seed", *seed, "cohort seed")->default_val(1);
+    cmd->add_option("--out", *out, "output directory")->required();
+    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
+    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        std::error_code ec;
+        fs::create_directories(*out, ec);
+        if (ec) throw Error(*out + ": cannot create directory: " + ec.message());
+        nlohmann::json manifest;
+        manifest["format"] = "mvtwin-cohort";
+        manifest["synthetic"] = true;
+        manifest["mvtwin_version"] = kVersion;
+        manifest["seed"] = *seed;
+        manifest["n"] = *n;
+        manifest["command"] = ctx.command_line;
+        manifest["patients"] = nlohmann::json::array();
+        int made = 0, kept = 0, failed = 0;
+        for (int i = 0; i < *n; ++i) {
+          char name[32];
+          std::snprintf(name, sizeof name, "patient_%04d.h5", i);
+          const fs::path path = fs::path(*out) / name;
+          const std::uint64_t s = cohort_seed(*seed, i);
+          nlohmann::json entry{{"file", name}, {"seed", s}};
+          try {
+            bool reuse = false;
+            if (fs::exists(path)) {
+              try {
+                const Patient old = read_patient(path, false);
+                reuse = old.provenance.seed == s && old.sequence.ures == opts->ures &&
+                        old.sequence.vres == opts->vres;
+              } catch (const Error&) {
+                reuse = false;  // damaged or foreign file: make it again
+              }
+            }
+            Patient p;
+            if (reuse) {
+              p = read_patient(path, false);
+              ++kept;
+              entry["status"] = "kept";
+            } else {
+              VirtualPatientOptions o = *opts;
+              o.command = ctx.command_line + "  [patient " + std::to_string(i) + "]";
+              o.id = "virtual-" + std::to_string(*seed) + "-" + std::to_string(i);
+              p = make_virtual_patient(s, o);
+              write_patient(path, p);
+              ++made;
+              entry["status"] = "made";
+            }
+            entry["id"] = p.id;
+            entry["pathology"] = std::string(pathology_name(p.truth->pathology));
+          } catch (const Error& e) {
+            ++failed;
+            entry["status"] = "failed";
+            entry["error"] = e.what();
+            std::cerr << "\nmvtwin cohort: patient " << i << " failed: " << e.what() << "\n";
+          }
+          manifest["patients"].push_back(entry);
+          std::cerr << "\r[cohort] " << (i + 1) << "/" << *n << " (made " << made << ", kept "
+                    << kept << ", failed " << failed << ")" << std::flush;
+        }
+        std::cerr << "\n";
+        manifest["made"] = made;
+        manifest["kept"] = kept;
+        manifest["failed"] = failed;
+        const fs::path mpath = fs::path(*out) / "cohort.json";
+        write_atomically(mpath, [&](const fs::path& tmp) {
+          std::ofstream f(tmp);
+          f << manifest.dump(2) << "\n";
+          if (!f) throw Error(mpath.string() + ": write failed");
+        });
+        std::cout << "cohort of " << *n << " virtual patients in " << *out << " (made " << made
+                  << ", kept " << kept << ", failed " << failed << "); manifest " << mpath.string()
+                  << "\n";
+        return failed ? 1 : 0;
+      };
+    });
+  }
+  // ---- info ------------------------------------------------------------------------------------
+  {
+    auto* cmd = app.add_subcommand("info", "Human summary of a patient file");
+    cmd->footer("Example:\n  mvtwin info patient.h5");
+    auto file = std::make_shared<std::string>();
+    cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
+    cmd->callback([=, &ctx] {
+      ctx.run = [=] {
+        const Patient p = read_patient(*file, true);
+        print_info(p, std::cout);
+        return 0;
+      };
+    });
+  }
+  // ---- export ----------------------------------------------------------------------------------
+  {
+    auto* cmd = app.add_subcommand("export", "Export a patient file to VTK for ParaView");
+    cmd->footer("Example:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd vtk/annulus.pvd vtk/landmarks.pvd");
+    auto file = std::make_shared<std::string>();
+    auto dir = std::make_shared<std::string>();
+    auto force = std::make_shared<bool>(false);
+    cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
+    cmd->add_option("--vtk", *dir, "output directory")->required();
+    cmd->add_flag("--force", *force, "write into a directory that already has .pvd files");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=] {
+        const Patient p = read_patient(*file, false);
+        refuse_overwrite(fs::path(*dir) / "la_surface.pvd", *force);
+        const auto files = export_patient_vtk(p, *dir);
+        std::cout << "wrote " << files.size() << " VTK files to " << *dir
+                  << " (open la_surface.pvd, annulus.pvd, landmarks.pvd in ParaView)\n";
+        return 0;
+      };
+    });
+  }
+  // ---- import-seg ------------------------------------------------------------------------------
+  {
+    auto* cmd = app.add_subcommand("import-seg", "Fit the valve model to a NIfTI label map of a closed valve");
+    cmd->footer("Example:\n  mvtwin import-seg 008_gt.nii.gz --out 008.h5 --labels 1,2,3\n"
+                "Labels are annulus,anterior,posterior (default 1,2,3, the mvtool convention).");
+    auto file = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    auto labels = std::make_shared<std::vector<int>>(std::vector<int>{1, 2, 3});
+    auto atrium = std::make_shared<std::vector<double>>();
+    auto opts = std::make_shared<SegmentationImportOptions>();
+    auto force = std::make_shared<bool>(false);
+    cmd->add_option("LABELMAP", *file, "NIfTI label map (.nii or .nii.gz)")->required();
+    cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
+    cmd->add_option("--labels", *labels, "label values of annulus,anterior,posterior")
+        ->delimiter(',')->expected(3);
+    cmd->add_option("--atrium", *atrium, "direction into the left atrium in image space, x,y,z (default: inferred)")
+        ->delimiter(',')->expected(3);
+    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
+    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+    cmd->add_flag("--force", *force, "replace an existing file");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        refuse_overwrite(*out, *force);
+        SegmentationImportOptions o = *opts;
+        o.labels = {(*labels)[0], (*labels)[1], (*labels)[2]};
+        if (!atrium->empty()) o.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
+        const ImageVolume im = read_nifti(*file);
+        SegmentationImport r = import_segmentation(im, *file, o);
+        r.patient.provenance.command = ctx.command_line;
+        write_patient(*out, r.patient);
+        std::cout << "wrote " << *out << " from " << *file << "\n";
+        std::cout << "  voxels: annulus " << r.annulus_voxels << ", anterior " << r.anterior_voxels
+                  << ", posterior " << r.posterior_voxels << "\n";
+        auto line = [&](const char* what, const DistanceStats& d) {
+          std::cout << "  " << what << fmt(d.mean) << " +- " << fmt(d.sd) << " mm (95th pct "
+                    << fmt(d.p95) << ", max " << fmt(d.max) << ", n=" << d.count << ")\n";
+        };
+        line("fitted surface -> mask boundary:      ", r.surface_to_mask);
+        line("atrial mask boundary -> fitted surface: ", r.mask_to_surface);
+        line("fitted annulus -> annulus voxels:     ", r.annulus_to_mask);
+        for (const auto& n : r.notes) std::cout << "  note: " << n << "\n";
+        return 0;
+      };
+    });
+  }
+}
+
+}  // namespace mvtwin::tools

@@ -1,0 +1,17 @@
+#pragma once
+#include <functional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace mvtwin::tools {
+
+/// What the chosen subcommand will run, and the command line recorded in provenance.
+struct Context {
+  std::string command_line;
+  std::function<int()> run;
+};
+
+void register_commands(CLI::App& app, Context& ctx);
+
+}  // namespace mvtwin::tools

@@ -1,0 +1,36 @@
+// mvtwin: the command line, thin over the libraries. Errors go to stderr with exit code 1
+// (bad input) or 2 (bad usage).
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/version.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"mvtwin: patient-specific mitral valve biomechanics (Mansi et al. 2012, re-created)"};
+  app.set_version_flag("--version", std::string(mvtwin::kVersion));
+  app.require_subcommand(1);
+  app.footer("Run 'mvtwin <command> --help' for a command's options and an example.");
+  mvtwin::tools::Context ctx;
+  for (int i = 0; i < argc; ++i) ctx.command_line += (i ? " " : "") + std::string(argv[i]);
+  mvtwin::tools::register_commands(app, ctx);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    return ctx.run();
+  } catch (const mvtwin::Error& e) {
+    std::cerr << "mvtwin: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "mvtwin: internal error: " << e.what() << "\n";
+    return 3;
+  }
+}
