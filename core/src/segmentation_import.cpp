@@ -323,24 +323,42 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     hf.h.assign(static_cast<size_t>(hf.nx) * hf.ny, kNaN);
     hf.label.assign(hf.h.size(), 0);
   }
+  // Ray-cast every pixel down the atrial normal into the union of leaflet voxels: the entry
+  // point is where the voxelized boundary lies, which straddles the true surface without bias.
   const Eigen::Matrix3d axes = im.direction * im.spacing.asDiagonal();
-  const double half_depth = 0.5 * (axes.transpose() * fr.n).cwiseAbs().sum();  // voxel half extent along n
-  const double splat = 0.5 * im.spacing.minCoeff();
+  const Eigen::Matrix3d to_index = axes.inverse();
+  std::vector<int> label_of(im.num_voxels(), 0);
+  double h_lo = 1e30, h_hi = -1e30;
   for (size_t i = 0; i < leaf.size(); ++i) {
-    const Eigen::Vector2d q = fr.to2d(leaf[i].p);
-    const double top = fr.height(leaf[i].p) + half_depth;
-    const int x0 = static_cast<int>(std::floor((q.x() - splat - hf.lo.x()) / hf.pixel));
-    const int x1 = static_cast<int>(std::floor((q.x() + splat - hf.lo.x()) / hf.pixel));
-    const int y0 = static_cast<int>(std::floor((q.y() - splat - hf.lo.y()) / hf.pixel));
-    const int y1 = static_cast<int>(std::floor((q.y() + splat - hf.lo.y()) / hf.pixel));
-    for (int y = y0; y <= y1; ++y) {
-      for (int x = x0; x <= x1; ++x) {
-        if (!hf.inside(x, y)) continue;
-        const int id = hf.idx(x, y);
-        if (std::isnan(hf.h[id]) || top > hf.h[id]) {
-          hf.h[id] = top;
-          hf.label[id] = leaf_label[i];
+    label_of[leaf[i].i + static_cast<size_t>(im.size[0]) * (leaf[i].j + static_cast<size_t>(im.size[1]) * leaf[i].k)] = leaf_label[i];
+    h_lo = std::min(h_lo, fr.height(leaf[i].p));
+    h_hi = std::max(h_hi, fr.height(leaf[i].p));
+  }
+  auto label_at = [&](const Eigen::Vector3d& p) -> int {
+    const Eigen::Vector3d q = to_index * (p - im.origin);
+    const long i = std::lround(q.x()), j = std::lround(q.y()), k = std::lround(q.z());
+    if (i < 0 || j < 0 || k < 0 || i >= im.size[0] || j >= im.size[1] || k >= im.size[2]) return 0;
+    return label_of[static_cast<size_t>(i) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(j) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(k))];
+  };
+  const double step = 0.2 * im.spacing.minCoeff();
+  for (int y = 0; y < hf.ny; ++y) {
+    for (int x = 0; x < hf.nx; ++x) {
+      const Eigen::Vector2d q = hf.centre(x, y);
+      double above = h_hi + 2.0 * im.spacing.maxCoeff();
+      for (double h = above; h >= h_lo - 2.0 * im.spacing.maxCoeff(); h -= step) {
+        const int l = label_at(fr.to3d(q, h));
+        if (l == 0) {
+          above = h;
+          continue;
         }
+        double in = h;  // bisect between `above` (outside) and `in` (inside)
+        for (int it = 0; it < 8; ++it) {
+          const double mid = 0.5 * (above + in);
+          (label_at(fr.to3d(q, mid)) ? in : above) = mid;
+        }
+        hf.h[hf.idx(x, y)] = 0.5 * (above + in);
+        hf.label[hf.idx(x, y)] = l;
+        break;
       }
     }
   }

@@ -63,7 +63,7 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
   d.pathology = pathology;
   // Annulus at end-diastole (SPEC Sec. 8: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
   // LM/IT 1.44, height/commissural width 10.6 +- 3.7 % in diastole, 13.5 % early systole).
-  d.alpm_diameter = rng.truncated_normal(37.0, 2.5, 31.0, 43.0);
+  d.alpm_diameter = rng.truncated_normal(39.5, 2.5, 33.0, 46.0);
   d.ap_diameter = d.alpm_diameter * rng.truncated_normal(0.77, 0.035, 0.68, 0.86);
   d.anterior_fraction = rng.truncated_normal(0.30, 0.03, 0.22, 0.38);
   d.commissure_angle = rng.truncated_normal(66.0, 4.0, 56.0, 76.0) * kDeg;
@@ -75,10 +75,10 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
   // Leaflets (radial length at mid-leaflet: anterior 21-26 mm, posterior 14-16 mm).
   d.al_length = rng.truncated_normal(23.5, 1.3, 20.5, 26.5);
   d.pl_length = rng.truncated_normal(15.0, 0.7, 13.5, 16.8);
-  d.commissure_length = rng.truncated_normal(9.0, 1.0, 7.0, 11.0);
-  d.al_opening = rng.truncated_normal(70.0, 4.0, 60.0, 80.0) * kDeg;
-  d.pl_opening = rng.truncated_normal(62.0, 4.0, 52.0, 72.0) * kDeg;
-  d.bulge = rng.uniform(0.03, 0.08);
+  d.commissure_length = rng.truncated_normal(10.0, 1.0, 8.0, 12.0);
+  d.al_opening = rng.truncated_normal(79.0, 3.0, 70.0, 86.0) * kDeg;
+  d.pl_opening = rng.truncated_normal(73.0, 3.0, 64.0, 80.0) * kDeg;
+  d.bulge = rng.uniform(0.06, 0.12);
   d.scallop_depth = rng.uniform(0.0, 0.12);
   // Papillary tips (26-27 mm below the annulus plane, ~30 mm apart).
   d.papillary_depth = rng.truncated_normal(26.5, 1.5, 22.0, 31.0);
@@ -136,8 +136,11 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       d.contraction *= 0.5;  // dysfunctional annulus contracts less
       d.papillary_depth += rng.uniform(3.0, 7.0);
       d.papillary_separation += rng.uniform(3.0, 8.0);
-      d.al_length *= rng.uniform(1.0, 1.1);
-      d.pl_length *= rng.uniform(1.0, 1.1);
+      // Leaflets enlarge with the annulus (Chaput et al. 2008): tethering, not missing tissue,
+      // is what keeps them from coapting.
+      const double growth = dilation * rng.uniform(0.95, 1.05);
+      d.al_length *= growth;
+      d.pl_length *= growth;
       h.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(85.0, 115.0));  // weaker ventricle
       break;
     }
@@ -206,7 +209,7 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     const bool anterior = u < ures / 2;
     const double s = anterior ? static_cast<double>(u) / (ures / 2)
                               : static_cast<double>(u - ures / 2) / (ures / 2);
-    double g = std::pow(std::sin(pi * s), anterior ? 0.5 : 0.4);
+    double g = std::pow(std::sin(pi * s), anterior ? 0.3 : 0.25);
     if (!anterior) {  // clefts between the posterior scallops P1/P2/P3
       g *= 1.0 - d.scallop_depth * (std::exp(-std::pow((s - 1.0 / 3) / 0.04, 2)) +
                                     std::exp(-std::pow((s - 2.0 / 3) / 0.04, 2)));
