@@ -237,6 +237,53 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
   return LeafletGrid(ures, vres, std::move(P));
 }
 
+/// Rest-length factor per chordae group at which the chordae are just taut when the valve is
+/// closed, from a geometric estimate of the closed valve at the first closed frame: facing
+/// leaflet columns (fractions s and 1-s of the way round, i.e. the same distance from the
+/// anterolateral commissure) meet on the chord between their annulus points, each reaching in
+/// proportion to its length, and their excess length hangs together into the ventricle (the
+/// coaptation zone). Chordae sites follow SPEC Sec. 3 (28 marginal on the free edge, 8 basal at
+/// mid-leaflet); a chorda belongs to the anterolateral papillary tip when s < 1/4 or s >= 3/4.
+/// Everything in the valve frame.
+std::array<double, kNumChordaeGroups> closure_taut_restlength(
+    const LeafletGrid& ed, const Curve& annulus_closed, const Eigen::Vector3d& tip_al_ed,
+    const Eigen::Vector3d& tip_pm_ed, const Eigen::Vector3d& tip_al_closed,
+    const Eigen::Vector3d& tip_pm_closed) {
+  const int ures = ed.ures();
+  const Curve dense = resample_closed_curve(annulus_closed, 16 * ures);
+  auto annulus_at = [&](double s) -> Eigen::Vector3d {
+    const int n = static_cast<int>(dense.rows());
+    return dense.row(static_cast<int>(std::lround((s - std::floor(s)) * n)) % n).transpose();
+  };
+  const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+  std::array<double, kNumChordaeGroups> sum{}, count{};
+  auto add = [&](double s, bool marginal) {
+    const double partner = 1.0 - s;
+    const double L = ed.radial_length_at(s), Lp = ed.radial_length_at(partner);
+    const Eigen::Vector3d A = annulus_at(s), Ap = annulus_at(partner);
+    const double chord = (Ap - A).norm();
+    const Eigen::Vector3d meet = A + (L / (L + Lp)) * (Ap - A);
+    const Eigen::Vector3d closed =
+        marginal ? Eigen::Vector3d(meet + down * std::max(0.0, 0.5 * (L + Lp - chord)))
+                 : Eigen::Vector3d(A + 0.5 * (meet - A));
+    const Eigen::Vector3d open = ed.sample(s, marginal ? 1.0 : 0.5);
+    const bool anterolateral = s < 0.25 || s >= 0.75;
+    const int g = (anterolateral ? 0 : 2) + (marginal ? 0 : 1);
+    const Eigen::Vector3d& t_ed = anterolateral ? tip_al_ed : tip_pm_ed;
+    const Eigen::Vector3d& t_cl = anterolateral ? tip_al_closed : tip_pm_closed;
+    sum[g] += (closed - t_cl).norm() / (open - t_ed).norm();
+    count[g] += 1.0;
+  };
+  for (int k = 0; k < 28; ++k) add(k / 28.0, true);
+  for (int i = 0; i < 4; ++i) {
+    add((2 * i + 1) / 8.0, false);
+    add((2 * i + 1) / 8.0 + 1.0 / ures, false);
+  }
+  std::array<double, kNumChordaeGroups> f{};
+  for (int g = 0; g < kNumChordaeGroups; ++g) f[g] = sum[g] / count[g];
+  return f;
+}
+
 Eigen::Matrix4d draw_pose(Rng& rng) {
   // A probe-like placement: the valve about 7 cm deep, rotated by up to 30 degrees.
   Eigen::Vector3d axis(rng.normal(), rng.normal(), rng.normal());
@@ -301,6 +348,11 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   const Eigen::Vector3d T = pose.topRightCorner<3, 1>();
   auto to_image = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return R * x + T; };
 
+  // Valve-frame copies for the rest-length estimate.
+  std::optional<LeafletGrid> ed_surface_valve;
+  Curve annulus_closed_valve;
+  Eigen::Vector3d tips_ed[2], tips_closed[2];
+
   for (int f = 0; f < d.frames; ++f) {
     const double t = f * frame_dt;
     // Systolic activation: 0 in diastole, rising to 1 at the first closed frame (the annulus is
@@ -339,10 +391,20 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     set(Landmark::kPosteromedialCommissure, annulus_v.row(ures / 2).transpose());
     const double sep = 0.5 * d.papillary_separation * (1.0 - 0.05 * a);
     const double pz = shape.z_shift - d.papillary_depth + d.papillary_rise * a;
-    set(Landmark::kAnterolateralPapillaryTip,
-        {d.papillary_posterior + 0.5 * d.papillary_asymmetry, sep, pz});
-    set(Landmark::kPosteromedialPapillaryTip,
-        {d.papillary_posterior - 0.5 * d.papillary_asymmetry, -sep, pz - 0.5 * d.papillary_asymmetry});
+    const Eigen::Vector3d tip_al(d.papillary_posterior + 0.5 * d.papillary_asymmetry, sep, pz);
+    const Eigen::Vector3d tip_pm(d.papillary_posterior - 0.5 * d.papillary_asymmetry, -sep,
+                                 pz - 0.5 * d.papillary_asymmetry);
+    set(Landmark::kAnterolateralPapillaryTip, tip_al);
+    set(Landmark::kPosteromedialPapillaryTip, tip_pm);
+    if (f == ed) {
+      tips_ed[0] = tip_al;
+      tips_ed[1] = tip_pm;
+    }
+    if (f == fc) {
+      tips_closed[0] = tip_al;
+      tips_closed[1] = tip_pm;
+      annulus_closed_valve = annulus_v;
+    }
 
     for (Landmark l : {Landmark::kAnteriorLeafletTip, Landmark::kPosteriorLeafletTip}) {
       fr.landmarks[index(l)].setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -352,6 +414,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       // Open frames: widest in early diastole, a little less open at end-diastole.
       const double opening_scale = 1.0 + 0.08 * (1.0 - t / std::max(t_ed, 1e-9));
       LeafletGrid g = open_leaflets(d, annulus_v, vres, opening_scale);
+      if (f == ed) ed_surface_valve = g;
       for (Eigen::Index i = 0; i < g.points().rows(); ++i) {
         g.points().row(i) = to_image(g.points().row(i).transpose()).transpose();
       }
@@ -363,9 +426,14 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     seq.frames.push_back(std::move(fr));
   }
 
+  // Hidden rest-length factors: the factor at which each group is just taut in the estimated
+  // closed valve, times the patient's own variation and its pathology (elongation).
+  const std::array<double, kNumChordaeGroups> taut = closure_taut_restlength(
+      *ed_surface_valve, annulus_closed_valve, tips_ed[0], tips_ed[1], tips_closed[0], tips_closed[1]);
   VirtualTruth truth;
   truth.pathology = pathology;
   truth.parameters = d.hidden;
+  for (int g = 0; g < kNumChordaeGroups; ++g) truth.parameters.restlength_factor[g] *= taut[g];
   truth.ruptured_marginal_chordae = d.ruptured;
   truth.pose = pose;
   truth.closed_frames =
@@ -398,6 +466,9 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       {"closure_frames", static_cast<double>(d.closure_frames)},
       {"closure_duration_s", t_fc - t_ed},
   };
+  for (int g = 0; g < kNumChordaeGroups; ++g) {
+    truth.anatomy.emplace_back("restlength_taut_" + std::string(kChordaeGroupNames[g]), taut[g]);
+  }
   p.truth = std::move(truth);
   seq.validate(("virtual patient " + p.id).c_str());
   return p;

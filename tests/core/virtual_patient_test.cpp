@@ -167,6 +167,12 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
       s["chordae_length_ed"].add((ins - (anterolateral ? pal : ppm)).norm());
     }
     (void)U;
+    for (const auto& [name, v] : p.truth->anatomy) {
+      if (name.rfind("restlength_taut_", 0) == 0) s[name].add(v);
+    }
+  }
+  for (const auto& [name, x] : s) {
+    if (name.rfind("restlength_taut_", 0) == 0) std::cout << name << " " << x.mean() << " +- " << x.sd() << "\n";
   }
   // name, low, high (for the mean), source
   struct Range {
