@@ -56,8 +56,8 @@ void print_info(const Patient& p, std::ostream& os) {
   int observed = 0;
   for (const auto& f : s.frames) observed += f.la_surface.has_value();
   os << "sequence  " << s.num_frames() << " frames, t = " << fmt(s.frames.front().time_s, 3)
-     << " .. " << fmt(s.frames.back().time_s, 3) << " s; grid ures=" << s.ures
-     << " vres=" << s.vres << "; leaflets observed in " << observed << " frames\n";
+     << " .. " << fmt(s.frames.back().time_s, 3) << " s; grid ures=" << s.ures << " vres=" << s.vres
+     << "; leaflets observed in " << observed << " frames\n";
   os << "phases    end-diastole = "
      << (s.end_diastole >= 0 ? "frame " + std::to_string(s.end_diastole) : "unknown")
      << ", first closed = "
@@ -72,9 +72,9 @@ void print_info(const Patient& p, std::ostream& os) {
     const ValveFrame& fr = s.frames[f];
     const AnnulusMeasures m = annulus_measures(fr);
     os << label << " (frame " << f << ")\n";
-    os << "  annulus   AP " << fmt(m.ap_diameter_mm, 1) << " mm, AL-PM " << fmt(m.alpm_diameter_mm, 1)
-       << " mm, commissural width " << fmt(m.commissural_width_mm, 1) << " mm, intertrigonal "
-       << fmt(m.intertrigonal_mm, 1) << " mm\n";
+    os << "  annulus   AP " << fmt(m.ap_diameter_mm, 1) << " mm, AL-PM "
+       << fmt(m.alpm_diameter_mm, 1) << " mm, commissural width " << fmt(m.commissural_width_mm, 1)
+       << " mm, intertrigonal " << fmt(m.intertrigonal_mm, 1) << " mm\n";
     os << "            perimeter " << fmt(m.perimeter_mm, 1) << " mm, 3D area "
        << fmt(units::mm2_to_cm2(m.area_3d_mm2)) << " cm^2, height " << fmt(m.height_mm, 1)
        << " mm (" << fmt(100 * m.height_mm / m.commissural_width_mm, 1)
@@ -110,7 +110,8 @@ void print_info(const Patient& p, std::ostream& os) {
       if (n == "peak_pressure") {
         os << n << " " << fmt(units::mpa_to_mmhg(v), 1) << " mmHg";
       } else {
-        os << n << " " << fmt(v, 3) << (std::string(unit) == "1" ? "" : std::string(" ") + unit) << "; ";
+        os << n << " " << fmt(v, 3) << (std::string(unit) == "1" ? "" : std::string(" ") + unit)
+           << "; ";
       }
     });
     os << "\n";
@@ -123,13 +124,21 @@ void print_info(const Patient& p, std::ostream& os) {
   }
 }
 
+/// The (u, v) grid resolution options shared by the commands that make a valve.
+void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
+  cmd->add_option("--ures", ures, "grid points around the annulus (even, >= 8)")->default_val(30);
+  cmd->add_option("--vres", vres, "grid points from annulus to free edge (>= 3)")->default_val(30);
+}
+
 }  // namespace
 
 void register_commands(CLI::App& app, Context& ctx) {
   // ---- phantom ---------------------------------------------------------------------------------
   {
     auto* cmd = app.add_subcommand("phantom", "Make one virtual (synthetic) patient");
-    cmd->footer("Example:\n  mvtwin phantom --seed 1 --out patient.h5\n  mvtwin phantom --seed 7 --pathology functional_mr --out fmr.h5");
+    cmd->footer(
+        "Example:\n  mvtwin phantom --seed 1 --out patient.h5\n  mvtwin phantom --seed 7 "
+        "--pathology functional_mr --out fmr.h5");
     auto seed = std::make_shared<std::uint64_t>(1);
     auto out = std::make_shared<std::string>();
     auto pathology = std::make_shared<std::string>();
@@ -138,9 +147,9 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--seed", *seed, "random seed (same seed, same patient)")->default_val(1);
     cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
     cmd->add_option("--pathology", *pathology,
-                    "normal | prolapse_elongated_chordae | prolapse_ruptured_chordae | functional_mr | stiff_leaflets (default: drawn)");
-    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
-    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+                    "normal | prolapse_elongated_chordae | prolapse_ruptured_chordae | "
+                    "functional_mr | stiff_leaflets (default: drawn)");
+    add_grid_options(cmd, opts->ures, opts->vres);
     cmd->add_flag("--force", *force, "replace an existing file");
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
@@ -160,9 +169,10 @@ void register_commands(CLI::App& app, Context& ctx) {
   // ---- cohort ----------------------------------------------------------------------------------
   {
     auto* cmd = app.add_subcommand("cohort", "Make many virtual patients (resumable)");
-    cmd->footer("Example:\n  mvtwin cohort --n 25 --seed 2026 --out cohort/\n"
-                "Existing valid patient files are kept (the run resumes); a patient that fails is\n"
-                "reported in cohort.json and the others go on.");
+    cmd->footer(
+        "Example:\n  mvtwin cohort --n 25 --seed 2026 --out cohort/\n"
+        "Existing valid patient files are kept (the run resumes); a patient that fails is\n"
+        "reported in cohort.json and the others go on.");
     auto n = std::make_shared<int>(25);
     auto seed = std::make_shared<std::uint64_t>(1);
     auto out = std::make_shared<std::string>();
@@ -170,8 +180,7 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--n", *n, "number of patients")->default_val(25)->check(CLI::Range(1, 100000));
     cmd->add_option("--seed", *seed, "cohort seed")->default_val(1);
     cmd->add_option("--out", *out, "output directory")->required();
-    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
-    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+    add_grid_options(cmd, opts->ures, opts->vres);
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
         std::error_code ec;
@@ -263,7 +272,9 @@ void register_commands(CLI::App& app, Context& ctx) {
   // ---- export ----------------------------------------------------------------------------------
   {
     auto* cmd = app.add_subcommand("export", "Export a patient file to VTK for ParaView");
-    cmd->footer("Example:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd vtk/annulus.pvd vtk/landmarks.pvd");
+    cmd->footer(
+        "Example:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd "
+        "vtk/annulus.pvd vtk/landmarks.pvd");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
     auto force = std::make_shared<bool>(false);
@@ -283,9 +294,11 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- import-seg ------------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand("import-seg", "Fit the valve model to a NIfTI label map of a closed valve");
-    cmd->footer("Example:\n  mvtwin import-seg 008_gt.nii.gz --out 008.h5 --labels 1,2,3\n"
-                "Labels are annulus,anterior,posterior (default 1,2,3, the mvtool convention).");
+    auto* cmd = app.add_subcommand("import-seg",
+                                   "Fit the valve model to a NIfTI label map of a closed valve");
+    cmd->footer(
+        "Example:\n  mvtwin import-seg 008_gt.nii.gz --out 008.h5 --labels 1,2,3\n"
+        "Labels are annulus,anterior,posterior (default 1,2,3, the mvtool convention).");
     auto file = std::make_shared<std::string>();
     auto out = std::make_shared<std::string>();
     auto labels = std::make_shared<std::vector<int>>(std::vector<int>{1, 2, 3});
@@ -295,18 +308,21 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("LABELMAP", *file, "NIfTI label map (.nii or .nii.gz)")->required();
     cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
     cmd->add_option("--labels", *labels, "label values of annulus,anterior,posterior")
-        ->delimiter(',')->expected(3);
-    cmd->add_option("--atrium", *atrium, "direction into the left atrium in image space, x,y,z (default: inferred)")
-        ->delimiter(',')->expected(3);
-    cmd->add_option("--ures", opts->ures, "grid points around the annulus")->default_val(30);
-    cmd->add_option("--vres", opts->vres, "grid points from annulus to free edge")->default_val(30);
+        ->delimiter(',')
+        ->expected(3);
+    cmd->add_option("--atrium", *atrium,
+                    "direction into the left atrium in image space, x,y,z (default: inferred)")
+        ->delimiter(',')
+        ->expected(3);
+    add_grid_options(cmd, opts->ures, opts->vres);
     cmd->add_flag("--force", *force, "replace an existing file");
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
         refuse_overwrite(*out, *force);
         SegmentationImportOptions o = *opts;
         o.labels = {(*labels)[0], (*labels)[1], (*labels)[2]};
-        if (!atrium->empty()) o.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
+        if (!atrium->empty())
+          o.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
         const ImageVolume im = read_nifti(*file);
         SegmentationImport r = import_segmentation(im, *file, o);
         r.patient.provenance.command = ctx.command_line;

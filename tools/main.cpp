@@ -12,7 +12,8 @@
 #include "mvtwin/core/version.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"mvtwin: patient-specific mitral valve biomechanics (Mansi et al. 2012, re-created)"};
+  CLI::App app{
+      "mvtwin: patient-specific mitral valve biomechanics (Mansi et al. 2012, re-created)"};
   app.set_version_flag("--version", std::string(mvtwin::kVersion));
   app.require_subcommand(1);
   app.footer("Run 'mvtwin <command> --help' for a command's options and an example.");

@@ -72,13 +72,12 @@ AnnulusMeasures annulus_measures(const ValveFrame& frame) {
     }
   }
 
-  m.intertrigonal_mm =
-      frame.observed(Landmark::kAnterolateralTrigone) &&
-              frame.observed(Landmark::kPosteromedialTrigone)
-          ? (frame.landmark(Landmark::kAnterolateralTrigone) -
-             frame.landmark(Landmark::kPosteromedialTrigone))
-                .norm()
-          : std::numeric_limits<double>::quiet_NaN();
+  m.intertrigonal_mm = frame.observed(Landmark::kAnterolateralTrigone) &&
+                               frame.observed(Landmark::kPosteromedialTrigone)
+                           ? (frame.landmark(Landmark::kAnterolateralTrigone) -
+                              frame.landmark(Landmark::kPosteromedialTrigone))
+                                 .norm()
+                           : std::numeric_limits<double>::quiet_NaN();
   return m;
 }
 

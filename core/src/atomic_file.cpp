@@ -31,7 +31,8 @@ void write_atomically(const std::filesystem::path& path,
       ::close(fd);
     }
     std::filesystem::rename(tmp, path, ec);
-    if (ec) throw Error(path.string() + ": cannot move the finished file into place: " + ec.message());
+    if (ec)
+      throw Error(path.string() + ": cannot move the finished file into place: " + ec.message());
   } catch (...) {
     std::filesystem::remove(tmp, ec);
     throw;

@@ -54,7 +54,8 @@ void Location::fail(const std::string& name, const std::string& problem) const {
 Location Location::create_file(const std::filesystem::path& path) {
   silence_hdf5();
   const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-  if (id < 0) throw Error(path.string() + ": cannot create HDF5 file (directory missing or not writable?)");
+  if (id < 0)
+    throw Error(path.string() + ": cannot create HDF5 file (directory missing or not writable?)");
   return Location(Handle(id, H5Fclose), path.string(), "/");
 }
 
@@ -62,7 +63,8 @@ Location Location::open_file(const std::filesystem::path& path) {
   silence_hdf5();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw Error(path.string() + ": is a directory, not a file");
+  if (std::filesystem::is_directory(path, ec))
+    throw Error(path.string() + ": is a directory, not a file");
   {
     std::ifstream f(path, std::ios::binary);
     if (!f) throw Error(path.string() + ": cannot be opened for reading (permissions?)");
@@ -110,13 +112,14 @@ void write_dataset(const Location& loc, const std::string& name, hid_t type, con
     // Chunks of at most ~1M elements along the slowest axis.
     hsize_t inner = 1;
     for (size_t i = 1; i < dims.size(); ++i) inner *= dims[i];
-    chunk[0] = std::max<hsize_t>(1, std::min<hsize_t>(dims[0], (1u << 20) / std::max<hsize_t>(inner, 1)));
+    chunk[0] =
+        std::max<hsize_t>(1, std::min<hsize_t>(dims[0], (1u << 20) / std::max<hsize_t>(inner, 1)));
     H5Pset_chunk(plist.get(), static_cast<int>(chunk.size()), chunk.data());
     H5Pset_deflate(plist.get(), 4);
   }
-  Handle ds(H5Dcreate2(loc.id(), name.c_str(), type, space.get(), H5P_DEFAULT, plist.get(),
-                       H5P_DEFAULT),
-            H5Dclose);
+  Handle ds(
+      H5Dcreate2(loc.id(), name.c_str(), type, space.get(), H5P_DEFAULT, plist.get(), H5P_DEFAULT),
+      H5Dclose);
   if (!ds.valid()) loc.fail(name, "cannot create dataset");
   if (total > 0 && H5Dwrite(ds.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) {
     loc.fail(name, "cannot write dataset (disk full?)");
@@ -155,8 +158,8 @@ void Location::write_strings(const std::string& name, const std::vector<std::str
 
 void Location::write_scalar(const std::string& name, double v, const char* units) const {
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle ds(H5Dcreate2(id(), name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT,
-                       H5P_DEFAULT, H5P_DEFAULT),
+  Handle ds(H5Dcreate2(id(), name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                       H5P_DEFAULT),
             H5Dclose);
   if (!ds.valid() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0) {
     fail(name, "cannot write scalar");
@@ -167,8 +170,7 @@ void Location::write_scalar(const std::string& name, double v, const char* units
 template <typename T>
 std::vector<T> Location::read_numeric(const std::string& name, hid_t mem_type,
                                       std::vector<hsize_t>* dims_out,
-                                      const std::vector<long>& expected,
-                                      const char* shape) const {
+                                      const std::vector<long>& expected, const char* shape) const {
   if (!exists(name)) fail(name, "dataset is missing");
   Handle ds(H5Dopen2(id(), name.c_str(), H5P_DEFAULT), H5Dclose);
   if (!ds.valid()) fail(name, "cannot open dataset (is it a group?)");
@@ -242,11 +244,12 @@ Handle Location::open_object(const std::string& object) const {
 }
 
 namespace {
-void write_attr(const Location& loc, hid_t obj, const std::string& name, hid_t type,
-                hid_t space, const void* data) {
+void write_attr(const Location& loc, hid_t obj, const std::string& name, hid_t type, hid_t space,
+                const void* data) {
   if (H5Aexists(obj, name.c_str()) > 0) H5Adelete(obj, name.c_str());
   Handle a(H5Acreate2(obj, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  if (!a.valid() || H5Awrite(a.get(), type, data) < 0) loc.fail("", "cannot write attribute " + name);
+  if (!a.valid() || H5Awrite(a.get(), type, data) < 0)
+    loc.fail("", "cannot write attribute " + name);
 }
 }  // namespace
 
@@ -280,9 +283,7 @@ void Location::attr(const std::string& name, const std::vector<double>& v,
   write_attr(*this, obj.get(), name, H5T_NATIVE_DOUBLE, space.get(), v.data());
 }
 
-bool Location::has_attr(const std::string& name) const {
-  return H5Aexists(id(), name.c_str()) > 0;
-}
+bool Location::has_attr(const std::string& name) const { return H5Aexists(id(), name.c_str()) > 0; }
 
 namespace {
 Handle open_attr(const Location& loc, const std::string& name) {
@@ -314,14 +315,16 @@ std::string Location::attr_string(const std::string& name) const {
 long Location::attr_long(const std::string& name) const {
   const Handle a = open_attr(*this, name);
   long long x = 0;
-  if (H5Aread(a.get(), H5T_NATIVE_LLONG, &x) < 0) fail("", "attribute '" + name + "' is not an integer");
+  if (H5Aread(a.get(), H5T_NATIVE_LLONG, &x) < 0)
+    fail("", "attribute '" + name + "' is not an integer");
   return static_cast<long>(x);
 }
 
 double Location::attr_double(const std::string& name) const {
   const Handle a = open_attr(*this, name);
   double x = 0;
-  if (H5Aread(a.get(), H5T_NATIVE_DOUBLE, &x) < 0) fail("", "attribute '" + name + "' is not a number");
+  if (H5Aread(a.get(), H5T_NATIVE_DOUBLE, &x) < 0)
+    fail("", "attribute '" + name + "' is not a number");
   return x;
 }
 

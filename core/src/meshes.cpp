@@ -16,9 +16,9 @@ void check_indices(const Eigen::MatrixBase<Derived>& idx, Eigen::Index n_vertice
   for (Eigen::Index r = 0; r < idx.rows(); ++r) {
     for (Eigen::Index c = 0; c < idx.cols(); ++c) {
       if (idx(r, c) < 0 || idx(r, c) >= n_vertices) {
-        throw Error(std::string(what) + ": element " + std::to_string(r) +
-                    " refers to vertex " + std::to_string(idx(r, c)) + " but there are " +
-                    std::to_string(n_vertices) + " vertices");
+        throw Error(std::string(what) + ": element " + std::to_string(r) + " refers to vertex " +
+                    std::to_string(idx(r, c)) + " but there are " + std::to_string(n_vertices) +
+                    " vertices");
       }
     }
   }

@@ -43,17 +43,23 @@ void put(unsigned char* p, T v) {
 
 double spatial_unit_to_mm(int xyzt_units) {
   switch (xyzt_units & 7) {
-    case 1: return 1000.0;  // metre
-    case 3: return 1e-3;    // micron
-    default: return 1.0;    // mm or unknown
+    case 1:
+      return 1000.0;  // metre
+    case 3:
+      return 1e-3;  // micron
+    default:
+      return 1.0;  // mm or unknown
   }
 }
 
 double time_unit_to_s(int xyzt_units) {
   switch (xyzt_units & 56) {
-    case 16: return 1e-3;  // ms
-    case 24: return 1e-6;  // us
-    default: return 1.0;   // s or unknown
+    case 16:
+      return 1e-3;  // ms
+    case 24:
+      return 1e-6;  // us
+    default:
+      return 1.0;  // s or unknown
   }
 }
 
@@ -82,15 +88,19 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
     }
   }
   if (std::memcmp(h + 344, "n+1", 4) != 0 && std::memcmp(h + 344, "ni1", 4) != 0) {
-    throw Error(name + ": bad NIfTI magic (expected 'n+1'; a separate .hdr/.img pair is not supported)");
+    throw Error(name +
+                ": bad NIfTI magic (expected 'n+1'; a separate .hdr/.img pair is not supported)");
   }
   std::int16_t dim[8];
   for (int i = 0; i < 8; ++i) dim[i] = get<std::int16_t>(h + 40 + 2 * i, swap);
   if (dim[0] < 3 || dim[0] > 4) {
-    throw Error(name + ": expected a 3D or 4D image, found " + std::to_string(dim[0]) + " dimensions");
+    throw Error(name + ": expected a 3D or 4D image, found " + std::to_string(dim[0]) +
+                " dimensions");
   }
   for (int i = 1; i <= dim[0]; ++i) {
-    if (dim[i] < 1) throw Error(name + ": dimension " + std::to_string(i) + " has size " + std::to_string(dim[i]));
+    if (dim[i] < 1)
+      throw Error(name + ": dimension " + std::to_string(i) + " has size " +
+                  std::to_string(dim[i]));
   }
   const int nt = dim[0] == 4 ? dim[4] : 1;
   const auto datatype = get<std::int16_t>(h + 70, swap);
@@ -105,10 +115,22 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
 
   int bytes = 0;
   switch (datatype) {
-    case 2: case 256: bytes = 1; break;     // uint8, int8
-    case 4: case 512: bytes = 2; break;     // int16, uint16
-    case 8: case 768: case 16: bytes = 4; break;  // int32, uint32, float32
-    case 64: bytes = 8; break;              // float64
+    case 2:
+    case 256:
+      bytes = 1;
+      break;  // uint8, int8
+    case 4:
+    case 512:
+      bytes = 2;
+      break;  // int16, uint16
+    case 8:
+    case 768:
+    case 16:
+      bytes = 4;
+      break;  // int32, uint32, float32
+    case 64:
+      bytes = 8;
+      break;  // float64
     default:
       throw Error(name + ": unsupported NIfTI datatype " + std::to_string(datatype));
   }
@@ -154,7 +176,8 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
 
   // Skip to the voxel data.
   const long skip = static_cast<long>(vox_offset) - kHeaderSize;
-  if (skip < 0) throw Error(name + ": vox_offset " + std::to_string(vox_offset) + " is inside the header");
+  if (skip < 0)
+    throw Error(name + ": vox_offset " + std::to_string(vox_offset) + " is inside the header");
   std::vector<unsigned char> ext(static_cast<size_t>(skip));
   if (skip > 0 && gzread(gz.f, ext.data(), static_cast<unsigned>(skip)) != skip) {
     throw Error(name + ": truncated before the voxel data");
@@ -181,14 +204,30 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
       const unsigned char* p = raw.data() + i * bytes;
       double v = 0.0;
       switch (datatype) {
-        case 2: v = p[0]; break;
-        case 256: v = static_cast<std::int8_t>(p[0]); break;
-        case 4: v = get<std::int16_t>(p, swap); break;
-        case 512: v = get<std::uint16_t>(p, swap); break;
-        case 8: v = get<std::int32_t>(p, swap); break;
-        case 768: v = get<std::uint32_t>(p, swap); break;
-        case 16: v = get<float>(p, swap); break;
-        case 64: v = get<double>(p, swap); break;
+        case 2:
+          v = p[0];
+          break;
+        case 256:
+          v = static_cast<std::int8_t>(p[0]);
+          break;
+        case 4:
+          v = get<std::int16_t>(p, swap);
+          break;
+        case 512:
+          v = get<std::uint16_t>(p, swap);
+          break;
+        case 8:
+          v = get<std::int32_t>(p, swap);
+          break;
+        case 768:
+          v = get<std::uint32_t>(p, swap);
+          break;
+        case 16:
+          v = get<float>(p, swap);
+          break;
+        case 64:
+          v = get<double>(p, swap);
+          break;
       }
       im.data[i] = static_cast<float>(v * slope + inter);
     }
@@ -200,21 +239,29 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
 ImageVolume read_nifti(const std::filesystem::path& path) {
   std::vector<ImageVolume> v = read_nifti_series(path);
   if (v.size() != 1) {
-    throw Error(path.string() + ": expected a 3D image, found " + std::to_string(v.size()) + " time points");
+    throw Error(path.string() + ": expected a 3D image, found " + std::to_string(v.size()) +
+                " time points");
   }
   return std::move(v.front());
 }
 
 void write_nifti(const std::filesystem::path& path, const ImageVolume& im) {
-  if (im.data.size() != im.num_voxels()) throw Error(path.string() + ": image data size does not match its dimensions");
+  if (im.data.size() != im.num_voxels())
+    throw Error(path.string() + ": image data size does not match its dimensions");
   for (int c = 0; c < 3; ++c) {
-    if (im.size[c] < 1 || im.size[c] > 32767) throw Error(path.string() + ": image size out of NIfTI-1 range");
+    if (im.size[c] < 1 || im.size[c] > 32767)
+      throw Error(path.string() + ": image size out of NIfTI-1 range");
   }
   unsigned char h[kHeaderSize + 4] = {};
   put<std::int32_t>(h, kHeaderSize);
-  const std::int16_t dim[8] = {3, static_cast<std::int16_t>(im.size[0]),
+  const std::int16_t dim[8] = {3,
+                               static_cast<std::int16_t>(im.size[0]),
                                static_cast<std::int16_t>(im.size[1]),
-                               static_cast<std::int16_t>(im.size[2]), 1, 1, 1, 1};
+                               static_cast<std::int16_t>(im.size[2]),
+                               1,
+                               1,
+                               1,
+                               1};
   for (int i = 0; i < 8; ++i) put<std::int16_t>(h + 40 + 2 * i, dim[i]);
   put<std::int16_t>(h + 70, 16);  // float32
   put<std::int16_t>(h + 72, 32);
@@ -224,8 +271,14 @@ void write_nifti(const std::filesystem::path& path, const ImageVolume& im) {
     R.col(2) *= -1.0;
     qfac = -1.0f;
   }
-  const float pixdim[8] = {qfac, static_cast<float>(im.spacing[0]), static_cast<float>(im.spacing[1]),
-                           static_cast<float>(im.spacing[2]), 1, 1, 1, 1};
+  const float pixdim[8] = {qfac,
+                           static_cast<float>(im.spacing[0]),
+                           static_cast<float>(im.spacing[1]),
+                           static_cast<float>(im.spacing[2]),
+                           1,
+                           1,
+                           1,
+                           1};
   for (int i = 0; i < 8; ++i) put<float>(h + 76 + 4 * i, pixdim[i]);
   put<float>(h + 108, 352.0f);
   put<float>(h + 112, 1.0f);
@@ -252,7 +305,8 @@ void write_nifti(const std::filesystem::path& path, const ImageVolume& im) {
     if (!gz.f) throw Error(path.string() + ": cannot open for writing");
     const size_t bytes = im.data.size() * sizeof(float);
     if (gzwrite(gz.f, h, kHeaderSize + 4) != kHeaderSize + 4 ||
-        (bytes > 0 && gzwrite(gz.f, im.data.data(), static_cast<unsigned>(bytes)) != static_cast<int>(bytes))) {
+        (bytes > 0 &&
+         gzwrite(gz.f, im.data.data(), static_cast<unsigned>(bytes)) != static_cast<int>(bytes))) {
       throw Error(path.string() + ": write failed (disk full?)");
     }
     if (gzclose(gz.f) != Z_OK) {

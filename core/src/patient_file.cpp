@@ -47,7 +47,8 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
     t[f] = fr.time_s;
     for (int l = 0; l < kNumLandmarks; ++l) {
       lm_obs[f * 9 + l] = fr.landmark_observed[l];
-      for (int k = 0; k < 3; ++k) lm[(f * 9 + l) * 3 + k] = fr.landmark_observed[l] ? fr.landmarks[l][k] : kNaN;
+      for (int k = 0; k < 3; ++k)
+        lm[(f * 9 + l) * 3 + k] = fr.landmark_observed[l] ? fr.landmarks[l][k] : kNaN;
     }
     for (hsize_t u = 0; u < U; ++u) {
       for (int k = 0; k < 3; ++k) ann[(f * U + u) * 3 + k] = fr.annulus(u, k);
@@ -68,8 +69,8 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
   std::vector<std::string> names(kLandmarkNames.begin(), kLandmarkNames.end());
   g.write_strings("landmark_names", names);
   g.write("annulus", ann, {F, U, 3}, units::kLength);
-  g.attr("description", std::string("annulus curve = v=0 row of la_surface, present in every frame"),
-         "annulus");
+  g.attr("description",
+         std::string("annulus curve = v=0 row of la_surface, present in every frame"), "annulus");
   g.write("leaflet_observed", leaf_obs, {F});
   g.attr("description",
          std::string("1 where the frame's leaflet surface is known; 0 where it is missing (for a "
@@ -258,11 +259,16 @@ VirtualTruth read_truth(const h5::Location& root) {
 
 std::string_view pathology_name(Pathology p) {
   switch (p) {
-    case Pathology::kNormal: return "normal";
-    case Pathology::kProlapseElongatedChordae: return "prolapse_elongated_chordae";
-    case Pathology::kProlapseRupturedChordae: return "prolapse_ruptured_chordae";
-    case Pathology::kFunctionalMr: return "functional_mr";
-    case Pathology::kStiffLeaflets: return "stiff_leaflets";
+    case Pathology::kNormal:
+      return "normal";
+    case Pathology::kProlapseElongatedChordae:
+      return "prolapse_elongated_chordae";
+    case Pathology::kProlapseRupturedChordae:
+      return "prolapse_ruptured_chordae";
+    case Pathology::kFunctionalMr:
+      return "functional_mr";
+    case Pathology::kStiffLeaflets:
+      return "stiff_leaflets";
   }
   return "unknown";
 }
@@ -323,8 +329,8 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
   const long version = root.attr_long("format_version");
   if (version > kPatientFormatVersion) {
     root.fail("", "format_version " + std::to_string(version) +
-                      " is newer than this mvtwin reads (" +
-                      std::to_string(kPatientFormatVersion) + ")");
+                      " is newer than this mvtwin reads (" + std::to_string(kPatientFormatVersion) +
+                      ")");
   }
   Patient p;
   p.id = root.attr_string("patient_id");

@@ -65,7 +65,8 @@ std::vector<std::filesystem::path> export_patient_vtk(const Patient& patient,
       id.values.push_back(l);
     }
     lm.points.resize(static_cast<Eigen::Index>(pts.size()), 3);
-    for (size_t i = 0; i < pts.size(); ++i) lm.points.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
+    for (size_t i = 0; i < pts.size(); ++i)
+      lm.points.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
     lm.point_data.push_back(id);
     write_vtp(dir / name, lm);
     written.push_back(dir / name);
@@ -74,7 +75,8 @@ std::vector<std::filesystem::path> export_patient_vtk(const Patient& patient,
   write_pvd(dir / "la_surface.pvd", surf_steps);
   write_pvd(dir / "annulus.pvd", ann_steps);
   write_pvd(dir / "landmarks.pvd", lm_steps);
-  for (const char* n : {"la_surface.pvd", "annulus.pvd", "landmarks.pvd"}) written.push_back(dir / n);
+  for (const char* n : {"la_surface.pvd", "annulus.pvd", "landmarks.pvd"})
+    written.push_back(dir / n);
   return written;
 }
 

@@ -29,7 +29,9 @@ struct PlaneFrame {
   Eigen::Vector3d c, e1, e2, n;
   Eigen::Vector2d to2d(const Eigen::Vector3d& p) const { return {e1.dot(p - c), e2.dot(p - c)}; }
   double height(const Eigen::Vector3d& p) const { return n.dot(p - c); }
-  Eigen::Vector3d to3d(const Eigen::Vector2d& q, double h) const { return c + q.x() * e1 + q.y() * e2 + h * n; }
+  Eigen::Vector3d to3d(const Eigen::Vector2d& q, double h) const {
+    return c + q.x() * e1 + q.y() * e2 + h * n;
+  }
 };
 
 /// Least-squares Fourier series of order `order` through (angle, value) samples, evaluated at
@@ -71,7 +73,9 @@ struct HeightField {
   std::vector<int> label;
 
   int idx(int x, int y) const { return x + nx * y; }
-  Eigen::Vector2d centre(int x, int y) const { return lo + pixel * Eigen::Vector2d(x + 0.5, y + 0.5); }
+  Eigen::Vector2d centre(int x, int y) const {
+    return lo + pixel * Eigen::Vector2d(x + 0.5, y + 0.5);
+  }
   bool inside(int x, int y) const { return x >= 0 && y >= 0 && x < nx && y < ny; }
 
   /// Height at q from pixels of label `want` (or any label when want < 0) by inverse-distance
@@ -157,16 +161,19 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     }
   }
   out.annulus_voxels = static_cast<int>(ann.size());
-  out.anterior_voxels = static_cast<int>(std::count(leaf_label.begin(), leaf_label.end(), opt.labels.anterior));
+  out.anterior_voxels =
+      static_cast<int>(std::count(leaf_label.begin(), leaf_label.end(), opt.labels.anterior));
   out.posterior_voxels = static_cast<int>(leaf_label.size()) - out.anterior_voxels;
   std::string found;
-  for (const auto& [l, n] : histogram) found += (found.empty() ? "" : ", ") + std::to_string(l) + ": " + std::to_string(n);
+  for (const auto& [l, n] : histogram)
+    found += (found.empty() ? "" : ", ") + std::to_string(l) + ": " + std::to_string(n);
   if (found.empty()) found = "none";
   auto need = [&](int count, int label, const char* what) {
     if (count < 50) {
       throw Error(source + ": label " + std::to_string(label) + " (" + what + ") has " +
-                  std::to_string(count) + " voxels, too few to fit (labels found with voxel counts: " +
-                  found + "); check the label mapping");
+                  std::to_string(count) +
+                  " voxels, too few to fit (labels found with voxel counts: " + found +
+                  "); check the label mapping");
     }
   };
   need(out.annulus_voxels, opt.labels.annulus, "annulus");
@@ -244,7 +251,8 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
       // distance to the curve near that angle
       double best = 1e30;
       for (int o = -8; o <= 8; ++o) {
-        best = std::min(best, (dense.row((d + o + kDense) % kDense).transpose() - leaf[i].p).norm());
+        best =
+            std::min(best, (dense.row((d + o + kDense) % kDense).transpose() - leaf[i].p).norm());
       }
       if (best > kReach) continue;
       (leaf_label[i] == opt.labels.anterior ? nal : npl)[d] += 1.0;
@@ -271,14 +279,16 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     }
   }
   if (best_start < 0 || best_len >= kDense) {
-    throw Error(source + ": cannot find the commissures (the anterior and posterior leaflets do "
-                         "not both touch the annulus)");
+    throw Error(source +
+                ": cannot find the commissures (the anterior and posterior leaflets do "
+                "not both touch the annulus)");
   }
   // The plane frame has n into the atrium, so increasing angle is counter-clockwise seen from
   // the atrium; u runs clockwise, entering the anterior arc at its high-angle end.
   const int i_al = (best_start + best_len) % kDense;  // anterolateral commissure
   const int i_pm = best_start;                        // posteromedial commissure
-  out.notes.push_back("anterior annulus arc: " + std::to_string(360.0 * best_len / kDense) + " degrees");
+  out.notes.push_back("anterior annulus arc: " + std::to_string(360.0 * best_len / kDense) +
+                      " degrees");
 
   // Sample the annulus on the grid: each arc evenly in arc length, going down in angle.
   const int ures = opt.ures, vres = opt.vres;
@@ -287,11 +297,13 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     std::vector<double> len(count_dense + 1, 0.0);
     for (int s = 1; s <= count_dense; ++s) {
       len[s] = len[s - 1] + (dense.row((from - s + 2 * kDense) % kDense) -
-                             dense.row((from - s + 1 + 2 * kDense) % kDense)).norm();
+                             dense.row((from - s + 1 + 2 * kDense) % kDense))
+                                .norm();
     }
     for (int k = 0; k < count; ++k) {
       const double target = len[count_dense] * k / count;
-      const int s = static_cast<int>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
+      const int s =
+          static_cast<int>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
       const int s1 = std::max(s, 1);
       const double f = (target - len[s1 - 1]) / std::max(len[s1] - len[s1 - 1], 1e-12);
       const Eigen::Vector3d a = dense.row((from - (s1 - 1) + 2 * kDense) % kDense).transpose();
@@ -330,7 +342,9 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
   std::vector<int> label_of(im.num_voxels(), 0);
   double h_lo = 1e30, h_hi = -1e30;
   for (size_t i = 0; i < leaf.size(); ++i) {
-    label_of[leaf[i].i + static_cast<size_t>(im.size[0]) * (leaf[i].j + static_cast<size_t>(im.size[1]) * leaf[i].k)] = leaf_label[i];
+    label_of[leaf[i].i + static_cast<size_t>(im.size[0]) *
+                             (leaf[i].j + static_cast<size_t>(im.size[1]) * leaf[i].k)] =
+        leaf_label[i];
     h_lo = std::min(h_lo, fr.height(leaf[i].p));
     h_hi = std::max(h_hi, fr.height(leaf[i].p));
   }
@@ -338,7 +352,10 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     const Eigen::Vector3d q = to_index * (p - im.origin);
     const long i = std::lround(q.x()), j = std::lround(q.y()), k = std::lround(q.z());
     if (i < 0 || j < 0 || k < 0 || i >= im.size[0] || j >= im.size[1] || k >= im.size[2]) return 0;
-    return label_of[static_cast<size_t>(i) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(j) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(k))];
+    return label_of[static_cast<size_t>(i) +
+                    static_cast<size_t>(im.size[0]) *
+                        (static_cast<size_t>(j) +
+                         static_cast<size_t>(im.size[1]) * static_cast<size_t>(k))];
   };
   const double step = 0.2 * im.spacing.minCoeff();
   for (int y = 0; y < hf.ny; ++y) {
@@ -377,10 +394,12 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
       if (std::isnan(hf.h[a])) continue;
       for (const int b : {hf.idx(x + 1, y), hf.idx(x, y + 1)}) {
         if (std::isnan(hf.h[b]) || hf.label[b] == hf.label[a]) continue;
-        const Eigen::Vector2d m = 0.5 * (hf.centre(x, y) + (b == a + 1 ? hf.centre(x + 1, y) : hf.centre(x, y + 1)));
+        const Eigen::Vector2d m =
+            0.5 * (hf.centre(x, y) + (b == a + 1 ? hf.centre(x + 1, y) : hf.centre(x, y + 1)));
         const double t = dir.dot(m - c_al) / span;
         if (t <= 0.0 || t >= 1.0) continue;
-        bins[std::min(static_cast<int>(t * kLineBins), kLineBins - 1)].push_back(perp.dot(m - c_al));
+        bins[std::min(static_cast<int>(t * kLineBins), kLineBins - 1)].push_back(
+            perp.dot(m - c_al));
       }
     }
   }
@@ -392,8 +411,9 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     line_w.push_back(bins[b][bins[b].size() / 2]);
   }
   if (line_t.size() < 6) {
-    throw Error(source + ": no coaptation line found (the leaflets do not meet seen from the atrium; "
-                         "is this a closed valve?)");
+    throw Error(source +
+                ": no coaptation line found (the leaflets do not meet seen from the atrium; "
+                "is this a closed valve?)");
   }
   // Smooth the line with a low-order polynomial in t.
   const double t_min = line_t.front(), t_max = line_t.back();
@@ -413,7 +433,8 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     for (int k = 0; k < line_coef.size(); ++k) w += line_coef[k] * std::pow(t - 0.5, k);
     return c_al + t * span * dir + w * perp;
   };
-  out.notes.push_back("coaptation line over " + std::to_string(static_cast<int>(100 * (t_max - t_min))) +
+  out.notes.push_back("coaptation line over " +
+                      std::to_string(static_cast<int>(100 * (t_max - t_min))) +
                       " % of the commissural width");
 
   // ---- 7. the (u,v) grid: straight in the plane from annulus to coaptation line, lifted onto
@@ -421,7 +442,8 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
   LeafletGrid::Points P(static_cast<Eigen::Index>(ures) * vres, 3);
   for (int u = 0; u < ures; ++u) {
     const bool anterior = u < ures / 2;
-    const double s = anterior ? static_cast<double>(u) / (ures / 2) : static_cast<double>(u - ures / 2) / (ures / 2);
+    const double s = anterior ? static_cast<double>(u) / (ures / 2)
+                              : static_cast<double>(u - ures / 2) / (ures / 2);
     const double t = anterior ? t_min + s * (t_max - t_min) : t_max - s * (t_max - t_min);
     const Eigen::Vector2d a = fr.to2d(annulus.row(u).transpose());
     const Eigen::Vector2d f = coaptation(t);
@@ -433,7 +455,9 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
       const bool commissure = (u == 0 || u == ures / 2);
       double h = hf.sample(q, commissure ? -1 : own);
       if (std::isnan(h)) h = hf.sample(q, -1);
-      if (std::isnan(h)) throw Error(source + ": leaflet surface has a hole at grid point (u=" + std::to_string(u) + ", v=" + std::to_string(v) + ")");
+      if (std::isnan(h))
+        throw Error(source + ": leaflet surface has a hole at grid point (u=" + std::to_string(u) +
+                    ", v=" + std::to_string(v) + ")");
       P.row(static_cast<Eigen::Index>(v) * ures + u) = fr.to3d(q, h).transpose();
     }
   }
@@ -445,10 +469,10 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
   pt.synthetic = false;
   pt.provenance.version = kVersion;
   pt.provenance.created_utc = utc_now_iso8601();
-  pt.provenance.source = "segmentation import: " + source + " (labels annulus=" +
-                         std::to_string(opt.labels.annulus) + " anterior=" +
-                         std::to_string(opt.labels.anterior) + " posterior=" +
-                         std::to_string(opt.labels.posterior) + ")";
+  pt.provenance.source = "segmentation import: " + source +
+                         " (labels annulus=" + std::to_string(opt.labels.annulus) +
+                         " anterior=" + std::to_string(opt.labels.anterior) +
+                         " posterior=" + std::to_string(opt.labels.posterior) + ")";
   ValveSequence& seq = pt.sequence;
   seq.ures = ures;
   seq.vres = vres;
@@ -479,10 +503,14 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
   // The leaflet mask boundary as a surface of voxel faces.
   {
     std::vector<std::uint8_t> is_leaf(im.num_voxels(), 0);
-    for (const Voxel& v : leaf) is_leaf[v.i + static_cast<size_t>(im.size[0]) * (v.j + static_cast<size_t>(im.size[1]) * v.k)] = 1;
+    for (const Voxel& v : leaf)
+      is_leaf[v.i +
+              static_cast<size_t>(im.size[0]) * (v.j + static_cast<size_t>(im.size[1]) * v.k)] = 1;
     auto leaf_at = [&](int i, int j, int k) {
-      if (i < 0 || j < 0 || k < 0 || i >= im.size[0] || j >= im.size[1] || k >= im.size[2]) return false;
-      return is_leaf[i + static_cast<size_t>(im.size[0]) * (j + static_cast<size_t>(im.size[1]) * k)] != 0;
+      if (i < 0 || j < 0 || k < 0 || i >= im.size[0] || j >= im.size[1] || k >= im.size[2])
+        return false;
+      return is_leaf[i + static_cast<size_t>(im.size[0]) *
+                             (j + static_cast<size_t>(im.size[1]) * k)] != 0;
     };
     TriangleMesh faces;
     std::vector<Eigen::Vector3d> V;
@@ -509,18 +537,22 @@ SegmentationImport import_segmentation(const ImageVolume& im, const std::string&
     }
     faces.V.resize(static_cast<Eigen::Index>(V.size()), 3);
     faces.F.resize(static_cast<Eigen::Index>(F.size()), 3);
-    for (size_t i = 0; i < V.size(); ++i) faces.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
-    for (size_t i = 0; i < F.size(); ++i) faces.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    for (size_t i = 0; i < V.size(); ++i)
+      faces.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+    for (size_t i = 0; i < F.size(); ++i)
+      faces.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
     out.surface_to_mask = point_to_mesh_distance(grid.points(), faces);
     Points ac(static_cast<Eigen::Index>(atrial_centres.size()), 3);
-    for (size_t i = 0; i < atrial_centres.size(); ++i) ac.row(static_cast<Eigen::Index>(i)) = atrial_centres[i].transpose();
+    for (size_t i = 0; i < atrial_centres.size(); ++i)
+      ac.row(static_cast<Eigen::Index>(i)) = atrial_centres[i].transpose();
     out.mask_to_surface = point_to_mesh_distance(ac, grid.triangulate());
   }
   {
     std::vector<double> d;
     for (int i = 0; i < kDense; i += 4) {
       double best = 1e30;
-      for (const Voxel& v : ann) best = std::min(best, (v.p - dense.row(i).transpose()).squaredNorm());
+      for (const Voxel& v : ann)
+        best = std::min(best, (v.p - dense.row(i).transpose()).squaredNorm());
       d.push_back(std::sqrt(best));
     }
     out.annulus_to_mask = distance_stats(std::move(d));

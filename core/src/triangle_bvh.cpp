@@ -27,8 +27,10 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh) : mesh_(mesh) {
   std::iota(order_.begin(), order_.end(), 0);
   centroids_.resize(n);
   for (int f = 0; f < n; ++f) {
-    centroids_[f] = (mesh_.V.row(mesh_.F(f, 0)) + mesh_.V.row(mesh_.F(f, 1)) +
-                     mesh_.V.row(mesh_.F(f, 2))).transpose() / 3.0;
+    centroids_[f] =
+        (mesh_.V.row(mesh_.F(f, 0)) + mesh_.V.row(mesh_.F(f, 1)) + mesh_.V.row(mesh_.F(f, 2)))
+            .transpose() /
+        3.0;
   }
   nodes_.reserve(2 * n / kLeafSize + 2);
   build(0, n);

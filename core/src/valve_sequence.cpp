@@ -60,8 +60,8 @@ void ValveSequence::validate(const char* what) const {
       }
     }
     if (fr.annulus.rows() != ures) {
-      fail(at + "annulus has " + std::to_string(fr.annulus.rows()) + " points, expected ures = " +
-           std::to_string(ures));
+      fail(at + "annulus has " + std::to_string(fr.annulus.rows()) +
+           " points, expected ures = " + std::to_string(ures));
     }
     if (!fr.annulus.allFinite()) fail(at + "annulus has a non-finite coordinate");
     if (fr.la_surface) {
@@ -72,14 +72,13 @@ void ValveSequence::validate(const char* what) const {
       }
       for (Eigen::Index r = 0; r < g.points().rows(); ++r) {
         if (!g.points().row(r).allFinite()) {
-          fail(at + "surface point (u=" + std::to_string(r % ures) + ", v=" +
-               std::to_string(r / ures) + ") is not finite");
+          fail(at + "surface point (u=" + std::to_string(r % ures) +
+               ", v=" + std::to_string(r / ures) + ") is not finite");
         }
       }
       const double gap = (g.points().topRows(ures) - fr.annulus).rowwise().norm().maxCoeff();
       if (gap > 1e-6) {
-        fail(at + "annulus differs from the surface's v=0 row by " + std::to_string(gap) +
-             " mm");
+        fail(at + "annulus differs from the surface's v=0 row by " + std::to_string(gap) + " mm");
       }
     }
   }

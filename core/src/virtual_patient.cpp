@@ -165,9 +165,9 @@ struct AnnulusShape {
     // warped so that the commissures (at +-commissure_angle) map to +-90 degrees.
     double t = std::remainder(theta, 2.0 * pi);
     const double at = std::abs(t);
-    const double warped = at <= commissure_angle
-                              ? at / commissure_angle * (pi / 2)
-                              : pi / 2 + (at - commissure_angle) / (pi - commissure_angle) * (pi / 2);
+    const double warped = at <= commissure_angle ? at / commissure_angle * (pi / 2)
+                                                 : pi / 2 + (at - commissure_angle) /
+                                                                (pi - commissure_angle) * (pi / 2);
     return {(c >= 0 ? a_anterior : a_posterior) * c, b * s,
             0.5 * height * std::cos(2.0 * warped) + z_shift};
   }
@@ -184,7 +184,8 @@ Curve sample_annulus(const AnnulusShape& shape, int ures, std::vector<double>* t
     constexpr int kFine = 4000;
     std::vector<double> th(kFine + 1), len(kFine + 1, 0.0);
     for (int i = 0; i <= kFine; ++i) th[i] = theta0 + (theta1 - theta0) * i / kFine;
-    for (int i = 1; i <= kFine; ++i) len[i] = len[i - 1] + (shape.at(th[i]) - shape.at(th[i - 1])).norm();
+    for (int i = 1; i <= kFine; ++i)
+      len[i] = len[i - 1] + (shape.at(th[i]) - shape.at(th[i - 1])).norm();
     for (int k = 0; k < count; ++k) {
       const double target = len[kFine] * k / count;
       const auto it = std::lower_bound(len.begin(), len.end(), target);
@@ -195,7 +196,7 @@ Curve sample_annulus(const AnnulusShape& shape, int ures, std::vector<double>* t
       out.row(u0 + k) = shape.at(theta).transpose();
     }
   };
-  sample_arc(tc, -tc, 0, ures / 2);                     // anterior
+  sample_arc(tc, -tc, 0, ures / 2);                       // anterior
   sample_arc(-tc, -(2.0 * pi - tc), ures / 2, ures / 2);  // posterior
   return out;
 }
@@ -291,7 +292,8 @@ Eigen::Matrix4d draw_pose(Rng& rng) {
   const double angle = rng.uniform(0.0, 30.0) * kDeg;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
   pose.topLeftCorner<3, 3>() = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
-  pose.topRightCorner<3, 1>() = Eigen::Vector3d(rng.normal(0, 5), rng.normal(0, 5), 70.0 + rng.normal(0, 5));
+  pose.topRightCorner<3, 1>() =
+      Eigen::Vector3d(rng.normal(0, 5), rng.normal(0, 5), 70.0 + rng.normal(0, 5));
   return pose;
 }
 
@@ -322,8 +324,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   // end-diastole; then systole.
   const double period = 60.0 / d.heart_rate_bpm;
   const double frame_dt = period / d.frames;
-  const int ed = std::max(1, d.frames - 1 - std::max(d.closure_frames,
-                                                     static_cast<int>(std::lround(0.35 * d.frames))));
+  const int ed = std::max(
+      1, d.frames - 1 - std::max(d.closure_frames, static_cast<int>(std::lround(0.35 * d.frames))));
   const int fc = ed + d.closure_frames;
   const double t_ed = ed * frame_dt, t_fc = fc * frame_dt, t_end = (d.frames - 1) * frame_dt;
 
@@ -376,7 +378,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     ValveFrame fr;
     fr.time_s = t;
     Curve annulus(ures, 3);
-    for (int u = 0; u < ures; ++u) annulus.row(u) = to_image(annulus_v.row(u).transpose()).transpose();
+    for (int u = 0; u < ures; ++u)
+      annulus.row(u) = to_image(annulus_v.row(u).transpose()).transpose();
     fr.annulus = annulus;
 
     auto set = [&](Landmark l, const Eigen::Vector3d& x_valve) {
@@ -428,8 +431,9 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
 
   // Hidden rest-length factors: the factor at which each group is just taut in the estimated
   // closed valve, times the patient's own variation and its pathology (elongation).
-  const std::array<double, kNumChordaeGroups> taut = closure_taut_restlength(
-      *ed_surface_valve, annulus_closed_valve, tips_ed[0], tips_ed[1], tips_closed[0], tips_closed[1]);
+  const std::array<double, kNumChordaeGroups> taut =
+      closure_taut_restlength(*ed_surface_valve, annulus_closed_valve, tips_ed[0], tips_ed[1],
+                              tips_closed[0], tips_closed[1]);
   VirtualTruth truth;
   truth.pathology = pathology;
   truth.parameters = d.hidden;

@@ -34,8 +34,8 @@ void write_array(std::ostringstream& os, const VtkArray& a, size_t expected_tupl
                 std::to_string(expected_tuples) + " tuples of " + std::to_string(a.components) +
                 " components, got " + std::to_string(a.values.size()) + " values");
   }
-  os << "        <DataArray type=\"" << (a.integer ? "Int32" : "Float64") << "\" Name=\""
-     << a.name << "\" NumberOfComponents=\"" << a.components << "\" format=\"ascii\">\n";
+  os << "        <DataArray type=\"" << (a.integer ? "Int32" : "Float64") << "\" Name=\"" << a.name
+     << "\" NumberOfComponents=\"" << a.components << "\" format=\"ascii\">\n";
   for (size_t i = 0; i < a.values.size(); ++i) {
     os << (i % 12 == 0 ? "          " : " ")
        << (a.integer ? std::to_string(static_cast<long>(a.values[i])) : number(a.values[i]))
@@ -65,13 +65,16 @@ void write_data(std::ostringstream& os, const char* tag, const std::vector<VtkAr
 
 void write_cells(std::ostringstream& os, const char* tag,
                  const std::vector<std::vector<int>>& cells, Eigen::Index n_points) {
-  os << "      <" << tag << ">\n        <DataArray type=\"Int32\" Name=\"connectivity\" "
+  os << "      <" << tag
+     << ">\n        <DataArray type=\"Int32\" Name=\"connectivity\" "
         "format=\"ascii\">\n          ";
   long offset = 0;
   std::vector<long> offsets;
   for (const auto& c : cells) {
     for (int i : c) {
-      if (i < 0 || i >= n_points) throw Error("VTK cell refers to point " + std::to_string(i) + " of " + std::to_string(n_points));
+      if (i < 0 || i >= n_points)
+        throw Error("VTK cell refers to point " + std::to_string(i) + " of " +
+                    std::to_string(n_points));
       os << i << " ";
     }
     offset += static_cast<long>(c.size());
@@ -111,7 +114,8 @@ void write_vtp(const std::filesystem::path& path, const TriangleMesh& mesh,
   VtkPolyData d;
   d.points = mesh.V;
   d.polys.reserve(mesh.F.rows());
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) d.polys.push_back({mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)});
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    d.polys.push_back({mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)});
   d.point_data = point_data;
   d.cell_data = cell_data;
   write_vtp(path, d);

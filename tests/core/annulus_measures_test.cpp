@@ -3,8 +3,8 @@
 #include <cmath>
 #include <numbers>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/annulus_plane.h"
 
@@ -23,7 +23,8 @@ ValveFrame ellipse_frame(double a, double b, double h, int ures,
   for (int u = 0; u < ures; ++u) {
     const double theta = pi / 2 - 2 * pi * u / ures;
     f.annulus.row(u) = (pose * Eigen::Vector3d(a * std::cos(theta), b * std::sin(theta),
-                                               0.5 * h * std::cos(2 * theta))).transpose();
+                                               0.5 * h * std::cos(2 * theta)))
+                           .transpose();
   }
   for (auto& l : f.landmarks) l.setConstant(std::nan(""));
   return f;
@@ -80,8 +81,10 @@ TEST(AnnulusPlane, TipDistancesFromLandmarks) {
   f.landmarks[index(Landmark::kAnterolateralTrigone)] = on_plane(10, 10);
   f.landmarks[index(Landmark::kPosteromedialTrigone)] = on_plane(10, -10);
   f.landmarks[index(Landmark::kPosteriorAnnulusMidpoint)] = on_plane(-14, 0);
-  f.landmarks[index(Landmark::kAnteriorLeafletTip)] = on_plane(2, 0) + Eigen::Vector3d(0, 0, -5 / std::cos(tilt));
-  f.landmarks[index(Landmark::kPosteriorLeafletTip)] = on_plane(-3, 1) + Eigen::Vector3d(0, 0, 2 / std::cos(tilt));
+  f.landmarks[index(Landmark::kAnteriorLeafletTip)] =
+      on_plane(2, 0) + Eigen::Vector3d(0, 0, -5 / std::cos(tilt));
+  f.landmarks[index(Landmark::kPosteriorLeafletTip)] =
+      on_plane(-3, 1) + Eigen::Vector3d(0, 0, 2 / std::cos(tilt));
   for (Landmark l : {Landmark::kAnterolateralTrigone, Landmark::kPosteromedialTrigone,
                      Landmark::kPosteriorAnnulusMidpoint, Landmark::kAnteriorLeafletTip,
                      Landmark::kPosteriorLeafletTip}) {

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <numbers>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/valve_sequence.h"
@@ -24,7 +24,8 @@ Eigen::Vector3d skirt(double s, double t) {
 LeafletGrid make_grid(int ures, int vres) {
   LeafletGrid::Points P(ures * vres, 3);
   for (int v = 0; v < vres; ++v) {
-    for (int u = 0; u < ures; ++u) P.row(v * ures + u) = skirt(double(u) / ures, double(v) / (vres - 1)).transpose();
+    for (int u = 0; u < ures; ++u)
+      P.row(v * ures + u) = skirt(double(u) / ures, double(v) / (vres - 1)).transpose();
   }
   return LeafletGrid(ures, vres, P);
 }
@@ -93,7 +94,8 @@ TEST(ValveSequence, ResampleClosedCurve) {
   for (int i = 0; i < 12; ++i) c.row(i) = skirt(i / 12.0, 0.0).transpose();
   const auto fine = resample_closed_curve(c, 48);
   for (int i = 0; i < 12; ++i) EXPECT_LT((fine.row(4 * i) - c.row(i)).norm(), 1e-12);
-  for (int i = 0; i < 48; ++i) EXPECT_LT((fine.row(i).transpose() - skirt(i / 48.0, 0.0)).norm(), 0.1);
+  for (int i = 0; i < 48; ++i)
+    EXPECT_LT((fine.row(i).transpose() - skirt(i / 48.0, 0.0)).norm(), 0.1);
 }
 
 }  // namespace

@@ -4,8 +4,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
 
@@ -22,8 +22,10 @@ class Nifti : public ::testing::Test {
     im_.size = {7, 5, 4};
     im_.spacing = {0.5, 0.8, 1.25};
     im_.origin = {-10, 20.5, 3};
-    im_.direction = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
-    for (size_t i = 0; i < im_.num_voxels(); ++i) im_.data.push_back(static_cast<float>(i % 11) - 3.5f);
+    im_.direction =
+        Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+    for (size_t i = 0; i < im_.num_voxels(); ++i)
+      im_.data.push_back(static_cast<float>(i % 11) - 3.5f);
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string error_of(const fs::path& p) {
@@ -59,9 +61,11 @@ TEST_F(Nifti, AgreesWithNibabel) {
   }
   write_nifti(dir_ / "b.nii.gz", im_);
   const fs::path out = dir_ / "nib.txt";
-  const std::string cmd = "/usr/bin/python3 -c \"import nibabel as nb\ni=nb.load('" + (dir_ / "b.nii.gz").string() +
-                          "')\nimport numpy as np\nx=i.affine@np.array([3,2,1,1])\nd=i.get_fdata()\n"
-                          "print('%.4f %.4f %.4f %.2f' % (x[0],x[1],x[2],d[3,2,1]))\" > " + out.string();
+  const std::string cmd =
+      "/usr/bin/python3 -c \"import nibabel as nb\ni=nb.load('" + (dir_ / "b.nii.gz").string() +
+      "')\nimport numpy as np\nx=i.affine@np.array([3,2,1,1])\nd=i.get_fdata()\n"
+      "print('%.4f %.4f %.4f %.2f' % (x[0],x[1],x[2],d[3,2,1]))\" > " +
+      out.string();
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   std::ifstream f(out);
   double x, y, z, v;
@@ -75,9 +79,7 @@ TEST_F(Nifti, AgreesWithNibabel) {
 
 TEST_F(Nifti, BadFilesGetClearErrors) {
   EXPECT_NE(error_of(dir_ / "none.nii").find("no such file"), std::string::npos);
-  {
-    std::ofstream(dir_ / "text.nii") << "hello, not an image";
-  }
+  { std::ofstream(dir_ / "text.nii") << "hello, not an image"; }
   EXPECT_NE(error_of(dir_ / "text.nii").find("too short for a NIfTI header"), std::string::npos);
   {
     std::ofstream f(dir_ / "junk.nii", std::ios::binary);
@@ -91,7 +93,8 @@ TEST_F(Nifti, BadFilesGetClearErrors) {
 
 TEST_F(Nifti, RealLabelMapFromSharedData) {
   const fs::path p = fs::path(MVTWIN_SHARED_DATA_DIR) / "mvtool-008" / "008_gt.nii.gz";
-  if (!fs::exists(p)) GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
+  if (!fs::exists(p))
+    GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
   const ImageVolume im = read_nifti(p);
   EXPECT_EQ(im.size, (std::array<int, 3>{173, 188, 83}));
   EXPECT_NEAR(im.spacing.x(), 0.5, 1e-6);

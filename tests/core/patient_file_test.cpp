@@ -7,8 +7,8 @@
 #include <fstream>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/virtual_patient.h"
@@ -31,14 +31,15 @@ class PatientFile : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // Replaces dataset `name` of an existing file by a float64 array of the given shape.
-  static void replace_dataset(const fs::path& file, const char* name, const std::vector<double>& data,
-                              const std::vector<hsize_t>& dims) {
+  static void replace_dataset(const fs::path& file, const char* name,
+                              const std::vector<double>& data, const std::vector<hsize_t>& dims) {
     const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     ASSERT_GE(f, 0);
     H5Ldelete(f, name, H5P_DEFAULT);
     if (!data.empty()) {
       const hid_t s = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
-      const hid_t d = H5Dcreate2(f, name, H5T_NATIVE_DOUBLE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+      const hid_t d =
+          H5Dcreate2(f, name, H5T_NATIVE_DOUBLE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
       H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data());
       H5Dclose(d);
       H5Sclose(s);
@@ -46,7 +47,8 @@ class PatientFile : public ::testing::Test {
     H5Fclose(f);
   }
 
-  static std::vector<double> read_all(const fs::path& file, const char* name, std::vector<hsize_t>* dims) {
+  static std::vector<double> read_all(const fs::path& file, const char* name,
+                                      std::vector<hsize_t>* dims) {
     const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     const hid_t d = H5Dopen2(f, name, H5P_DEFAULT);
     const hid_t s = H5Dget_space(d);
@@ -122,9 +124,7 @@ TEST_F(PatientFile, RoundTripKeepsEverything) {
 
 TEST_F(PatientFile, ClearErrorsForBadFiles) {
   EXPECT_NE(read_error(dir_ / "absent.h5").find("no such file"), std::string::npos);
-  {
-    std::ofstream(dir_ / "text.h5") << "this is not HDF5\n";
-  }
+  { std::ofstream(dir_ / "text.h5") << "this is not HDF5\n"; }
   EXPECT_NE(read_error(dir_ / "text.h5").find("not an HDF5 file"), std::string::npos);
   // A truncated copy of a good file.
   const fs::path good = dir_ / "good.h5";
@@ -151,7 +151,8 @@ TEST_F(PatientFile, ErrorsNameTheDatasetAndProblem) {
 
   write_patient(p, patient_);
   auto lm = read_all(p, "/sequence/landmarks", &dims);
-  replace_dataset(p, "/sequence/landmarks", std::vector<double>(dims[0] * 8 * 3, 0.0), {dims[0], 8, 3});
+  replace_dataset(p, "/sequence/landmarks", std::vector<double>(dims[0] * 8 * 3, 0.0),
+                  {dims[0], 8, 3});
   e = read_error(p);
   EXPECT_NE(e.find("/sequence/landmarks: expected shape (F, 9, 3)"), std::string::npos) << e;
 

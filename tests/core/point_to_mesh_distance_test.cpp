@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/point_triangle_distance.h"
 #include "mvtwin/core/rng.h"
@@ -36,7 +36,8 @@ TriangleMesh plane_mesh(int n, double h, double z = 0.0) {
 TEST(PointTriangleDistance, EveryRegion) {
   const Eigen::Vector3d a(0, 0, 0), b(2, 0, 0), c(0, 2, 0);
   // face, edges, vertices
-  EXPECT_TRUE(closest_point_on_triangle({0.5, 0.5, 3}, a, b, c).isApprox(Eigen::Vector3d(0.5, 0.5, 0)));
+  EXPECT_TRUE(
+      closest_point_on_triangle({0.5, 0.5, 3}, a, b, c).isApprox(Eigen::Vector3d(0.5, 0.5, 0)));
   EXPECT_TRUE(closest_point_on_triangle({1, -1, 0}, a, b, c).isApprox(Eigen::Vector3d(1, 0, 0)));
   EXPECT_TRUE(closest_point_on_triangle({-1, 1, 1}, a, b, c).isApprox(Eigen::Vector3d(0, 1, 0)));
   EXPECT_TRUE(closest_point_on_triangle({2, 2, 0}, a, b, c).isApprox(Eigen::Vector3d(1, 1, 0)));
@@ -64,7 +65,8 @@ TEST(TriangleBvh, MatchesBruteForce) {
   for (int f = 0; f < nf; ++f) {
     const Eigen::Vector3d c(rng.uniform(-20, 20), rng.uniform(-20, 20), rng.uniform(-20, 20));
     for (int k = 0; k < 3; ++k) {
-      m.V.row(3 * f + k) = (c + Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal())).transpose();
+      m.V.row(3 * f + k) =
+          (c + Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal())).transpose();
       m.F(f, k) = 3 * f + k;
     }
   }
@@ -75,7 +77,9 @@ TEST(TriangleBvh, MatchesBruteForce) {
     for (int f = 0; f < nf; ++f) {
       best = std::min(best, (closest_point_on_triangle(p, m.V.row(m.F(f, 0)).transpose(),
                                                        m.V.row(m.F(f, 1)).transpose(),
-                                                       m.V.row(m.F(f, 2)).transpose()) - p).norm());
+                                                       m.V.row(m.F(f, 2)).transpose()) -
+                             p)
+                                .norm());
     }
     const TriangleBvh::Hit h = bvh.closest(p);
     EXPECT_NEAR(h.distance, best, 1e-12);
@@ -100,11 +104,12 @@ TEST(PointToMeshDistance, AnalyticPlane) {
 }
 
 TEST(PointToMeshDistance, Statistics) {
-  const DistanceStats s = distance_stats({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21});
+  const DistanceStats s =
+      distance_stats({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21});
   EXPECT_EQ(s.count, 21);
   EXPECT_DOUBLE_EQ(s.mean, 11.0);
   EXPECT_NEAR(s.sd, std::sqrt(440.0 / 12.0), 1e-12);  // population SD of 1..21
-  EXPECT_DOUBLE_EQ(s.p95, 20.0);                       // 0.95 * 20 = 19 -> the 20th value
+  EXPECT_DOUBLE_EQ(s.p95, 20.0);                      // 0.95 * 20 = 19 -> the 20th value
   EXPECT_DOUBLE_EQ(s.max, 21.0);
   EXPECT_EQ(distance_stats({}).count, 0);
 }

@@ -5,8 +5,8 @@
 #include <iostream>
 #include <numbers>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
@@ -101,7 +101,8 @@ TEST(SegmentationImport, RecoversAnAnalyticClosedValve) {
       ++n;
     }
   }
-  std::cout << "analytic valve: fitted LA surface vs truth, mean " << sum / n << " mm, max " << worst << " mm\n";
+  std::cout << "analytic valve: fitted LA surface vs truth, mean " << sum / n << " mm, max "
+            << worst << " mm\n";
   EXPECT_LT(sum / n, 0.3);
   EXPECT_LT(worst, 1.5);
 
@@ -138,7 +139,8 @@ TEST(SegmentationImport, WrongLabelsAreNamed) {
     FAIL() << "expected an error";
   } catch (const Error& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find("seg.nii.gz: label 7 (posterior leaflet) has 0 voxels"), std::string::npos) << m;
+    EXPECT_NE(m.find("seg.nii.gz: label 7 (posterior leaflet) has 0 voxels"), std::string::npos)
+        << m;
     EXPECT_NE(m.find("labels found with voxel counts: 1: "), std::string::npos) << m;
   }
   opt.labels = {1, 1, 3};
@@ -155,16 +157,19 @@ TEST(SegmentationImport, RealValveMvtool008) {
     GTEST_SKIP() << "../shared/data/mvtool-008 absent (a user's clone has no ../shared): skipped";
   }
   const SegmentationImport gt = import_segmentation(read_nifti(dir / "008_gt.nii.gz"), "008_gt");
-  const SegmentationImport pred = import_segmentation(read_nifti(dir / "008_pred.nii.gz"), "008_pred");
+  const SegmentationImport pred =
+      import_segmentation(read_nifti(dir / "008_pred.nii.gz"), "008_pred");
   auto show = [](const char* what, const DistanceStats& d) {
-    std::cout << what << d.mean << " +- " << d.sd << " mm (p95 " << d.p95 << ", max " << d.max << ")\n";
+    std::cout << what << d.mean << " +- " << d.sd << " mm (p95 " << d.p95 << ", max " << d.max
+              << ")\n";
   };
   show("008_gt   surface -> mask boundary: ", gt.surface_to_mask);
   show("008_gt   atrial mask -> surface:   ", gt.mask_to_surface);
   show("008_pred surface -> mask boundary: ", pred.surface_to_mask);
   show("008_pred atrial mask -> surface:   ", pred.mask_to_surface);
-  const SymmetricDistance d = symmetric_surface_distance(gt.patient.sequence.frames[0].la_surface->triangulate(),
-                                                         pred.patient.sequence.frames[0].la_surface->triangulate());
+  const SymmetricDistance d =
+      symmetric_surface_distance(gt.patient.sequence.frames[0].la_surface->triangulate(),
+                                 pred.patient.sequence.frames[0].la_surface->triangulate());
   show("fitted gt -> fitted pred:          ", d.a_to_b);
   show("fitted pred -> fitted gt:          ", d.b_to_a);
   show("symmetric gt <-> pred:             ", d.symmetric);
@@ -176,7 +181,10 @@ TEST(SegmentationImport, RealValveMvtool008) {
   // The manual-vs-automatic difference is a real detection noise level: a few mm at most.
   EXPECT_LT(d.symmetric.mean, 3.0);
   // Correspondence: both fits put u = 0 at the same commissure.
-  EXPECT_LT((gt.patient.sequence.frames[0].annulus.row(0) - pred.patient.sequence.frames[0].annulus.row(0)).norm(), 6.0);
+  EXPECT_LT((gt.patient.sequence.frames[0].annulus.row(0) -
+             pred.patient.sequence.frames[0].annulus.row(0))
+                .norm(),
+            6.0);
 }
 
 }  // namespace

@@ -21,12 +21,14 @@ namespace mvtwin {
 namespace {
 
 TEST(VirtualPatient, SameSeedSamePatientOtherSeedOther) {
-  const Patient a = make_virtual_patient(5), b = make_virtual_patient(5), c = make_virtual_patient(6);
+  const Patient a = make_virtual_patient(5), b = make_virtual_patient(5),
+                c = make_virtual_patient(6);
   ASSERT_EQ(a.sequence.num_frames(), b.sequence.num_frames());
   for (int f = 0; f < a.sequence.num_frames(); ++f) {
     EXPECT_EQ(a.sequence.frames[f].annulus, b.sequence.frames[f].annulus);
     if (a.sequence.frames[f].la_surface) {
-      EXPECT_EQ(a.sequence.frames[f].la_surface->points(), b.sequence.frames[f].la_surface->points());
+      EXPECT_EQ(a.sequence.frames[f].la_surface->points(),
+                b.sequence.frames[f].la_surface->points());
     }
   }
   EXPECT_EQ(a.truth->parameters.restlength_factor, b.truth->parameters.restlength_factor);
@@ -77,7 +79,8 @@ TEST(VirtualPatient, OpenValveCanClose) {
       // ... and facing leaflets are together longer than the annulus chord they must span at
       // the first closed frame (the coaptation reserve).
       const double chord = (closed.annulus.row(u) - closed.annulus.row(U - u)).norm();
-      EXPECT_GT(g.radial_length(u) + g.radial_length(U - u) - chord, 2.0) << "seed " << seed << " u " << u;
+      EXPECT_GT(g.radial_length(u) + g.radial_length(U - u) - chord, 2.0)
+          << "seed " << seed << " u " << u;
     }
     EXPECT_GT(free_edge_gap(g, U / 4), 8.0) << "seed " << seed;
     // Leaflets hang into the ventricle.
@@ -150,7 +153,8 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
       const AnnulusPlane lsq = least_squares_plane(ed.annulus);
       Eigen::Vector3d va = Eigen::Vector3d::Zero();
       const int n = g.ures();
-      for (int u = 0; u < n; ++u) va += 0.5 * g.at(u, g.vres() - 1).cross(g.at(u + 1, g.vres() - 1));
+      for (int u = 0; u < n; ++u)
+        va += 0.5 * g.at(u, g.vres() - 1).cross(g.at(u + 1, g.vres() - 1));
       s["orifice_area_ed_cm2"].add(units::mm2_to_cm2(std::abs(va.dot(lsq.normal))));
     }
     const AnnulusPlane plane = annulus_plane(ed);
@@ -172,7 +176,8 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
     }
   }
   for (const auto& [name, x] : s) {
-    if (name.rfind("restlength_taut_", 0) == 0) std::cout << name << " " << x.mean() << " +- " << x.sd() << "\n";
+    if (name.rfind("restlength_taut_", 0) == 0)
+      std::cout << name << " " << x.mean() << " +- " << x.sd() << "\n";
   }
   // name, low, high (for the mean), source
   struct Range {
@@ -198,7 +203,8 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
       {"post_over_ant_arc", 1.6, 2.4, "posterior annulus ~2x anterior (anatomy)"},
       {"al_length", 21, 26, "anterior leaflet 21-26 mm (mvtool metrics)"},
       {"pl_length", 14, 16, "posterior leaflet 14-16 mm (mvtool metrics)"},
-      {"leaflet_over_annulus_area", 1.5, 2.8, "~2.5x annulus area (anatomy texts; see docs/virtual-patients.md)"},
+      {"leaflet_over_annulus_area", 1.5, 2.8,
+       "~2.5x annulus area (anatomy texts; see docs/virtual-patients.md)"},
       {"orifice_area_ed_cm2", 3.5, 6.5, "normal mitral valve area 4-6 cm^2 (ASE)"},
       {"papillary_depth", 24, 29, "26-27 mm below the annulus plane (heart_valves CT)"},
       {"papillary_separation", 26, 34, "tips ~30 mm apart (heart_valves CT)"},
@@ -210,8 +216,9 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
             << counts[4] << "\n";
   for (const Range& r : ranges) {
     const Sample& x = s.at(r.name);
-    std::cout << std::setw(28) << r.name << "  " << std::setw(8) << x.mean() << " +- " << std::setw(7)
-              << x.sd() << "   accepted mean [" << r.lo << ", " << r.hi << "]   published: " << r.published << "\n";
+    std::cout << std::setw(28) << r.name << "  " << std::setw(8) << x.mean() << " +- "
+              << std::setw(7) << x.sd() << "   accepted mean [" << r.lo << ", " << r.hi
+              << "]   published: " << r.published << "\n";
     EXPECT_GE(x.mean(), r.lo) << r.name;
     EXPECT_LE(x.mean(), r.hi) << r.name;
   }
@@ -225,7 +232,8 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
   }
   // Every class is represented; functional MR is dilated.
   for (int c : counts) EXPECT_GT(c, 10);
-  std::cout << "AP at first closed: functional MR " << ap_fmr.mean() << " mm vs others " << ap_normal.mean() << " mm\n";
+  std::cout << "AP at first closed: functional MR " << ap_fmr.mean() << " mm vs others "
+            << ap_normal.mean() << " mm\n";
   EXPECT_GT(ap_fmr.mean(), 1.12 * ap_normal.mean());
 }
 

@@ -31,12 +31,15 @@ bool have_python_vtk() {
 // "<points> <cells> <array names>"; empty if VTK is not available.
 std::string read_with_vtk(const fs::path& p) {
   const fs::path out = p.string() + ".check";
-  const std::string reader = p.extension() == ".vtu" ? "vtkXMLUnstructuredGridReader" : "vtkXMLPolyDataReader";
+  const std::string reader =
+      p.extension() == ".vtu" ? "vtkXMLUnstructuredGridReader" : "vtkXMLPolyDataReader";
   const std::string cmd =
       "/usr/bin/python3 -c \"import vtk,sys\nr=vtk." + reader + "()\nr.SetFileName('" + p.string() +
-      "')\nr.Update()\no=r.GetOutput()\nn=[o.GetCellData().GetArrayName(i) for i in range(o.GetCellData().GetNumberOfArrays())]"
+      "')\nr.Update()\no=r.GetOutput()\nn=[o.GetCellData().GetArrayName(i) for i in "
+      "range(o.GetCellData().GetNumberOfArrays())]"
       "+[o.GetPointData().GetArrayName(i) for i in range(o.GetPointData().GetNumberOfArrays())]\n"
-      "print(o.GetNumberOfPoints(), o.GetNumberOfCells(), ' '.join(n))\" > " + out.string() + " 2>&1";
+      "print(o.GetNumberOfPoints(), o.GetNumberOfCells(), ' '.join(n))\" > " +
+      out.string() + " 2>&1";
   if (std::system(cmd.c_str()) != 0) return "python failed: " + slurp(out);
   return slurp(out);
 }

@@ -51,7 +51,8 @@ TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
   for (const char* c : {"phantom", "cohort", "info", "export", "import-seg"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
-    EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n" << r.out;
+    EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
+                                                                               << r.out;
   }
 }
 
@@ -82,9 +83,7 @@ TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {
   CmdResult r = run("info " + path("missing.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("missing.h5: no such file"), std::string::npos) << r.err;
-  {
-    std::ofstream(path("junk.h5")) << "junk";
-  }
+  { std::ofstream(path("junk.h5")) << "junk"; }
   r = run("info " + path("junk.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("not an HDF5 file"), std::string::npos) << r.err;
@@ -108,9 +107,7 @@ TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
   EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
   const auto before = mvtwin::read_patient(path("c/patient_0002.h5"));
   fs::remove(dir_ / "c" / "patient_0001.h5");
-  {
-    std::ofstream(path("c/patient_0003.h5")) << "damaged";
-  }
+  { std::ofstream(path("c/patient_0003.h5")) << "damaged"; }
   r = run("cohort --n 4 --seed 3 --out " + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 2, kept 2, failed 0"), std::string::npos) << r.out;
@@ -122,7 +119,8 @@ TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
 
 TEST_F(Cli, ImportRealSegmentation) {
   const fs::path seg = fs::path(MVTWIN_SHARED_DATA_DIR) / "mvtool-008" / "008_gt.nii.gz";
-  if (!fs::exists(seg)) GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
+  if (!fs::exists(seg))
+    GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
   CmdResult r = run("import-seg " + seg.string() + " --out " + path("008.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("fitted surface -> mask boundary"), std::string::npos);

@@ -20,9 +20,7 @@ struct ImageVolume {
   /// Time of the frame in s (3D+t sequences), 0 for a single volume.
   double time_s = 0.0;
 
-  std::size_t num_voxels() const {
-    return static_cast<std::size_t>(size[0]) * size[1] * size[2];
-  }
+  std::size_t num_voxels() const { return static_cast<std::size_t>(size[0]) * size[1] * size[2]; }
   float at(int i, int j, int k) const {
     return data[static_cast<std::size_t>(i) +
                 static_cast<std::size_t>(size[0]) * (j + static_cast<std::size_t>(size[1]) * k)];

@@ -22,10 +22,9 @@ enum class Landmark : int {
 inline constexpr int kNumLandmarks = 9;
 
 inline constexpr std::array<std::string_view, kNumLandmarks> kLandmarkNames = {
-    "anterolateral_trigone",       "posteromedial_trigone",     "posterior_annulus_midpoint",
-    "anterolateral_commissure",    "posteromedial_commissure",  "anterior_leaflet_tip",
-    "posterior_leaflet_tip",       "anterolateral_papillary_tip",
-    "posteromedial_papillary_tip"};
+    "anterolateral_trigone",    "posteromedial_trigone",       "posterior_annulus_midpoint",
+    "anterolateral_commissure", "posteromedial_commissure",    "anterior_leaflet_tip",
+    "posterior_leaflet_tip",    "anterolateral_papillary_tip", "posteromedial_papillary_tip"};
 
 constexpr int index(Landmark l) { return static_cast<int>(l); }
 constexpr std::string_view name(Landmark l) { return kLandmarkNames[static_cast<int>(l)]; }

@@ -12,9 +12,9 @@ namespace mvtwin {
 class TriangleBvh {
  public:
   struct Hit {
-    double distance = 0.0;   ///< mm
-    int triangle = -1;       ///< index into F
-    Eigen::Vector3d point;   ///< closest point on the surface, mm
+    double distance = 0.0;  ///< mm
+    int triangle = -1;      ///< index into F
+    Eigen::Vector3d point;  ///< closest point on the surface, mm
   };
 
   explicit TriangleBvh(const TriangleMesh& mesh);

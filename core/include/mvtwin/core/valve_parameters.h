@@ -36,9 +36,13 @@ struct ValveParameters {
 
   /// Visits every scalar as f(name, value, unit) in a fixed order (files and reports).
   template <typename F>
-  void for_each(F&& f) { visit(*this, f); }
+  void for_each(F&& f) {
+    visit(*this, f);
+  }
   template <typename F>
-  void for_each(F&& f) const { visit(*this, f); }
+  void for_each(F&& f) const {
+    visit(*this, f);
+  }
 
  private:
   template <typename Self, typename F>
