@@ -16,6 +16,7 @@
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/patient_vtk.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/segmentation_import.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
@@ -288,6 +289,47 @@ void register_commands(CLI::App& app, Context& ctx) {
         const auto files = export_patient_vtk(p, *dir);
         std::cout << "wrote " << files.size() << " VTK files to " << *dir
                   << " (open la_surface.pvd, annulus.pvd, landmarks.pvd in ParaView)\n";
+        return 0;
+      };
+    });
+  }
+  // ---- distance --------------------------------------------------------------------------------
+  {
+    auto* cmd =
+        app.add_subcommand("distance", "Point-to-mesh distance between two patients' LA surfaces");
+    cmd->footer(
+        "Example:\n  mvtwin distance 008_gt.h5 008_pred.h5\n"
+        "Frames default to the first closed frame of each (else frame 0); distances go from the\n"
+        "vertices of one surface to the triangles of the other, both ways.");
+    auto a = std::make_shared<std::string>(), b = std::make_shared<std::string>();
+    auto fa = std::make_shared<int>(-1), fb = std::make_shared<int>(-1);
+    cmd->add_option("A", *a, "first patient file")->required();
+    cmd->add_option("B", *b, "second patient file")->required();
+    cmd->add_option("--frame-a", *fa, "frame of A (default: first closed, else 0)");
+    cmd->add_option("--frame-b", *fb, "frame of B (default: first closed, else 0)");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=] {
+        auto surface = [](const std::string& file, int frame) {
+          const Patient p = read_patient(file, false);
+          const ValveSequence& s = p.sequence;
+          if (frame < 0) frame = s.first_closed >= 0 ? s.first_closed : 0;
+          if (frame >= s.num_frames()) {
+            throw Error(file + ": frame " + std::to_string(frame) + " does not exist (" +
+                        std::to_string(s.num_frames()) + " frames)");
+          }
+          if (!s.frames[frame].la_surface) {
+            throw Error(file + ": frame " + std::to_string(frame) + " has no leaflet surface");
+          }
+          return s.frames[frame].la_surface->triangulate();
+        };
+        const SymmetricDistance d = symmetric_surface_distance(surface(*a, *fa), surface(*b, *fb));
+        auto line = [](const char* what, const DistanceStats& x) {
+          std::cout << what << fmt(x.mean) << " +- " << fmt(x.sd) << " mm (95th pct " << fmt(x.p95)
+                    << ", max " << fmt(x.max) << ", n=" << x.count << ")\n";
+        };
+        line("A -> B:    ", d.a_to_b);
+        line("B -> A:    ", d.b_to_a);
+        line("symmetric: ", d.symmetric);
         return 0;
       };
     });

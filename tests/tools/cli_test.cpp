@@ -48,7 +48,7 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg"}) {
+  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -127,6 +127,14 @@ TEST_F(Cli, ImportRealSegmentation) {
   r = run("info " + path("008.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.find("SYNTHETIC"), std::string::npos);  // real data is never labelled synthetic
+  const fs::path pred = seg.parent_path() / "008_pred.nii.gz";
+  ASSERT_EQ(run("import-seg " + pred.string() + " --out " + path("pred.h5")).code, 0);
+  r = run("distance " + path("008.h5") + " " + path("pred.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("symmetric: "), std::string::npos);
+  // A surface against itself is at distance zero.
+  r = run("distance " + path("008.h5") + " " + path("008.h5"));
+  EXPECT_NE(r.out.find("symmetric: 0.00 +- 0.00 mm"), std::string::npos) << r.out;
   r = run("import-seg " + seg.string() + " --labels 1,2,9 --out " + path("bad.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("label 9 (posterior leaflet) has 0 voxels"), std::string::npos) << r.err;
