@@ -244,13 +244,15 @@ VirtualTruth read_truth(const h5::Location& root) {
   t.ruptured_marginal_chordae = g.read_ints("ruptured_marginal_chordae", &d, {-1}, "(k)");
   const h5::Location a = g.open_group("anatomy");
   std::vector<std::string> names;
-  H5Literate(
-      a.id(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr,
-      [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
-        static_cast<std::vector<std::string>*>(data)->emplace_back(name);
-        return 0;
-      },
-      &names);
+  auto collect = [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+    return 0;
+  };
+  // Drawing order where the writer tracked it; name order for a group edited by another tool.
+  if (H5Literate(a.id(), H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect, &names) < 0) {
+    names.clear();
+    H5Literate(a.id(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect, &names);
+  }
   for (const std::string& n : names) t.anatomy.emplace_back(n, a.read_scalar(n));
   return t;
 }

@@ -95,7 +95,7 @@ struct HeightField {
           sh += w * h[i];
         }
       }
-      if (sw > 0.0 && r >= 1) return sh / sw;
+      if (sw > 0.0) return sh / sw;
     }
     return kNaN;
   }
