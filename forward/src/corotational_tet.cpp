@@ -1,0 +1,164 @@
+#include "mvtwin/forward/corotational_tet.h"
+
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace mvtwin::forward {
+namespace {
+
+// Mid-edge node k (4..9) joins corners kEdge[k-4][0] and kEdge[k-4][1] (VTK_QUADRATIC_TETRA).
+constexpr int kEdge[6][2] = {{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}};
+
+}  // namespace
+
+bool polar_decomposition(const Eigen::Matrix3d& F, Eigen::Matrix3d* R, Eigen::Matrix3d* S) {
+  if (!(F.determinant() > 0.0)) return false;
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  *R = svd.matrixU() * svd.matrixV().transpose();
+  *S = svd.matrixV() * svd.singularValues().asDiagonal() * svd.matrixV().transpose();
+  return true;
+}
+
+template <int N>
+CorotationalTet<N>::CorotationalTet(const Nodes& rest, const Stiffness6& C) : X_(rest) {
+  Eigen::Matrix3d Dm;
+  for (int j = 0; j < 3; ++j) Dm.col(j) = (X_.row(j + 1) - X_.row(0)).transpose();
+  volume_ = Dm.determinant() / 6.0;
+  Dm_inv_ = Dm.inverse();
+  K0_.setZero();
+  if constexpr (N == 4) {
+    const auto B = strain_matrix(Eigen::Vector4d::Constant(0.25));
+    K0_ = volume_ * B.transpose() * C * B;
+  } else {
+    // 4-point rule, exact for the quadratic integrand B^T C B of straight-sided T10.
+    const double a = 0.5854101966249685, b = 0.1381966011250105;
+    for (int q = 0; q < 4; ++q) {
+      Eigen::Vector4d L = Eigen::Vector4d::Constant(b);
+      L[q] = a;
+      const auto B = strain_matrix(L);
+      K0_ += 0.25 * volume_ * B.transpose() * C * B;
+    }
+  }
+}
+
+template <int N>
+typename CorotationalTet<N>::StrainMatrix CorotationalTet<N>::strain_matrix(
+    const Eigen::Vector4d& L) const {
+  // Gradients of the barycentric coordinates (constant on a straight-sided tet).
+  Eigen::Matrix<double, 4, 3> gL;
+  gL.bottomRows<3>() = Dm_inv_;
+  gL.row(0) = -Dm_inv_.colwise().sum();
+  Eigen::Matrix<double, N, 3> gN;
+  if constexpr (N == 4) {
+    gN = gL;
+  } else {
+    for (int i = 0; i < 4; ++i) gN.row(i) = (4.0 * L[i] - 1.0) * gL.row(i);
+    for (int k = 0; k < 6; ++k) {
+      const int i = kEdge[k][0], j = kEdge[k][1];
+      gN.row(4 + k) = 4.0 * (L[j] * gL.row(i) + L[i] * gL.row(j));
+    }
+  }
+  StrainMatrix B = StrainMatrix::Zero();
+  for (int a = 0; a < N; ++a) {
+    const double gx = gN(a, 0), gy = gN(a, 1), gz = gN(a, 2);
+    B(0, 3 * a) = gx;
+    B(1, 3 * a + 1) = gy;
+    B(2, 3 * a + 2) = gz;
+    B(3, 3 * a + 1) = gz;
+    B(3, 3 * a + 2) = gy;
+    B(4, 3 * a) = gz;
+    B(4, 3 * a + 2) = gx;
+    B(5, 3 * a) = gy;
+    B(5, 3 * a + 1) = gx;
+  }
+  return B;
+}
+
+template <int N>
+Eigen::Matrix<double, N, 1> CorotationalTet<N>::mass_fractions() {
+  Eigen::Matrix<double, N, 1> m;
+  if constexpr (N == 4) {
+    m.setConstant(0.25);
+  } else {
+    // HRZ: diagonal of the consistent mass (6/420 corners, 32/420 mid-edges) scaled to sum 1.
+    m.template head<4>().setConstant(6.0 / 216.0);
+    m.template tail<6>().setConstant(32.0 / 216.0);
+  }
+  return m;
+}
+
+template <int N>
+bool CorotationalTet<N>::evaluate(const Nodes& x, Vector* g, Matrix* consistent, Matrix* warped,
+                                  double* energy) const {
+  Eigen::Matrix3d Ds;
+  for (int j = 0; j < 3; ++j) Ds.col(j) = (x.row(j + 1) - x.row(0)).transpose();
+  const Eigen::Matrix3d F = Ds * Dm_inv_;
+  Eigen::Matrix3d R, S;
+  if (!polar_decomposition(F, &R, &S)) return false;
+
+  Vector u, y;  // y_i = R^T x_i, u = y - X
+  for (int i = 0; i < N; ++i) {
+    y.template segment<3>(3 * i) = R.transpose() * x.row(i).transpose();
+    u.template segment<3>(3 * i) = y.template segment<3>(3 * i) - X_.row(i).transpose();
+  }
+  const Vector k = K0_ * u;
+  if (energy) *energy = 0.5 * u.dot(k);
+  if (g) {
+    for (int i = 0; i < N; ++i) g->template segment<3>(3 * i) = R * k.template segment<3>(3 * i);
+  }
+  if (!consistent && !warped) return true;
+
+  // R K0 R^T, block-wise.
+  Matrix RKR;
+  for (int i = 0; i < N; ++i) {
+    for (int j = 0; j < N; ++j) {
+      RKR.template block<3, 3>(3 * i, 3 * j) = R * K0_.template block<3, 3>(3 * i, 3 * j) * R.transpose();
+    }
+  }
+  if (warped) *warped = RKR;
+  if (!consistent) return true;
+
+  // Rotation derivative: dR = R [w]x with (tr(S) I - S) w = axial(R^T dF - dF^T R).
+  // dg = R K0 R^T dx + R (w x k_i)_i + R K0 (y_i x w)_i, and only the corners move F.
+  *consistent = RKR;
+  const Eigen::Matrix3d A_inv = (S.trace() * Eigen::Matrix3d::Identity() - S).inverse();
+  for (int c = 0; c < 4; ++c) {
+    const Eigen::RowVector3d dm_row =
+        c == 0 ? Eigen::RowVector3d(-Dm_inv_.colwise().sum()) : Eigen::RowVector3d(Dm_inv_.row(c - 1));
+    for (int d = 0; d < 3; ++d) {
+      const Eigen::Matrix3d dF = Eigen::Vector3d::Unit(d) * dm_row;
+      const Eigen::Matrix3d M = R.transpose() * dF - dF.transpose() * R;
+      const Eigen::Vector3d w = A_inv * Eigen::Vector3d(M(2, 1), M(0, 2), M(1, 0));
+      Vector t1, t2;
+      for (int i = 0; i < N; ++i) {
+        t1.template segment<3>(3 * i) = R * w.cross(Eigen::Vector3d(k.template segment<3>(3 * i)));
+        t2.template segment<3>(3 * i) = Eigen::Vector3d(y.template segment<3>(3 * i)).cross(w);
+      }
+      Vector t3 = K0_ * t2;
+      for (int i = 0; i < N; ++i) t3.template segment<3>(3 * i) = R * t3.template segment<3>(3 * i);
+      consistent->col(3 * c + d) += t1 + t3;
+    }
+  }
+  return true;
+}
+
+template <int N>
+Eigen::Matrix<double, 6, 1> CorotationalTet<N>::centroid_strain(const Nodes& x) const {
+  Eigen::Matrix3d Ds;
+  for (int j = 0; j < 3; ++j) Ds.col(j) = (x.row(j + 1) - x.row(0)).transpose();
+  Eigen::Matrix3d R, S;
+  if (!polar_decomposition(Ds * Dm_inv_, &R, &S)) {
+    return Eigen::Matrix<double, 6, 1>::Constant(std::nan(""));
+  }
+  Vector u;
+  for (int i = 0; i < N; ++i) {
+    u.template segment<3>(3 * i) = R.transpose() * x.row(i).transpose() - X_.row(i).transpose();
+  }
+  return strain_matrix(Eigen::Vector4d::Constant(0.25)) * u;
+}
+
+template class CorotationalTet<4>;
+template class CorotationalTet<10>;
+
+}  // namespace mvtwin::forward
