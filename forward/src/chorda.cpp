@@ -26,7 +26,8 @@ double ChordaLaw::energy_density(double e) const {
   if (e <= 0.0) return 0.0;
   if (e <= strain_break) return 0.5 * e_low * e * e;
   const double d = e - strain_break;
-  return 0.5 * e_low * strain_break * strain_break + e_low * strain_break * d + 0.5 * e_high * d * d;
+  return 0.5 * e_low * strain_break * strain_break + e_low * strain_break * d +
+         0.5 * e_high * d * d;
 }
 
 void chorda_gradient(const ChordaLaw& law, double L0, const Eigen::Vector3d& a,
@@ -47,7 +48,8 @@ void chorda_gradient(const ChordaLaw& law, double L0, const Eigen::Vector3d& a,
   }
   if (H) {
     const double dTdl = law.area * law.tangent(strain) / L0;
-    const Eigen::Matrix3d Kb = dTdl * n * n.transpose() + (T / l) * (Eigen::Matrix3d::Identity() - n * n.transpose());
+    const Eigen::Matrix3d Kb =
+        dTdl * n * n.transpose() + (T / l) * (Eigen::Matrix3d::Identity() - n * n.transpose());
     H->topLeftCorner<3, 3>() = Kb;
     H->bottomRightCorner<3, 3>() = Kb;
     H->topRightCorner<3, 3>() = -Kb;

@@ -113,7 +113,8 @@ bool CorotationalTet<N>::evaluate(const Nodes& x, Vector* g, Matrix* consistent,
   Matrix RKR;
   for (int i = 0; i < N; ++i) {
     for (int j = 0; j < N; ++j) {
-      RKR.template block<3, 3>(3 * i, 3 * j) = R * K0_.template block<3, 3>(3 * i, 3 * j) * R.transpose();
+      RKR.template block<3, 3>(3 * i, 3 * j) =
+          R * K0_.template block<3, 3>(3 * i, 3 * j) * R.transpose();
     }
   }
   if (warped) *warped = RKR;
@@ -124,8 +125,8 @@ bool CorotationalTet<N>::evaluate(const Nodes& x, Vector* g, Matrix* consistent,
   *consistent = RKR;
   const Eigen::Matrix3d A_inv = (S.trace() * Eigen::Matrix3d::Identity() - S).inverse();
   for (int c = 0; c < 4; ++c) {
-    const Eigen::RowVector3d dm_row =
-        c == 0 ? Eigen::RowVector3d(-Dm_inv_.colwise().sum()) : Eigen::RowVector3d(Dm_inv_.row(c - 1));
+    const Eigen::RowVector3d dm_row = c == 0 ? Eigen::RowVector3d(-Dm_inv_.colwise().sum())
+                                             : Eigen::RowVector3d(Dm_inv_.row(c - 1));
     for (int d = 0; d < 3; ++d) {
       const Eigen::Matrix3d dF = Eigen::Vector3d::Unit(d) * dm_row;
       const Eigen::Matrix3d M = R.transpose() * dF - dF.transpose() * R;

@@ -1,8 +1,8 @@
 #include "mvtwin/forward/corotational_tet.h"
 
+#include <gtest/gtest.h>
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "mvtwin/core/rng.h"
 #include "mvtwin/forward/transversely_isotropic.h"
@@ -36,8 +36,10 @@ TYPED_TEST(CorotationalTetTest, RigidMotionGivesNoForce) {
   constexpr int N = TypeParam::value;
   const auto X = with_midpoints<N>(reference_corners());
   const CorotationalTet<N> e(X, TransverselyIsotropic::anterior_leaflet().stiffness({1, 0.3, 0.1}));
-  const Eigen::Matrix3d Q = Eigen::AngleAxisd(2.1, Eigen::Vector3d(0.3, -1, 0.4).normalized()).toRotationMatrix();
-  typename CorotationalTet<N>::Nodes x = (X * Q.transpose()).rowwise() + Eigen::RowVector3d(5, -3, 8);
+  const Eigen::Matrix3d Q =
+      Eigen::AngleAxisd(2.1, Eigen::Vector3d(0.3, -1, 0.4).normalized()).toRotationMatrix();
+  typename CorotationalTet<N>::Nodes x =
+      (X * Q.transpose()).rowwise() + Eigen::RowVector3d(5, -3, 8);
   typename CorotationalTet<N>::Vector g;
   double energy = -1;
   ASSERT_TRUE(e.evaluate(x, &g, nullptr, nullptr, &energy));
@@ -51,7 +53,8 @@ TYPED_TEST(CorotationalTetTest, ConsistentTangentMatchesFiniteDifferences) {
   const auto X = with_midpoints<N>(reference_corners());
   const Tet e(X, TransverselyIsotropic::anterior_leaflet().stiffness({0.2, 1, 0.5}));
   Rng rng(7);
-  const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.3, Eigen::Vector3d(1, 1, 0.2).normalized()).toRotationMatrix();
+  const Eigen::Matrix3d Q =
+      Eigen::AngleAxisd(1.3, Eigen::Vector3d(1, 1, 0.2).normalized()).toRotationMatrix();
   typename Tet::Nodes x = X * Q.transpose();
   for (int i = 0; i < N; ++i) {
     for (int k = 0; k < 3; ++k) x(i, k) += 0.08 * rng.normal();  // finite strain + rotation
@@ -95,7 +98,8 @@ TYPED_TEST(CorotationalTetTest, InvertedElementIsReportedNotEvaluated) {
 TYPED_TEST(CorotationalTetTest, UniformStrainEnergyAndMass) {
   constexpr int N = TypeParam::value;
   const auto X = with_midpoints<N>(reference_corners());
-  const Eigen::Matrix<double, 6, 6> C = TransverselyIsotropic::posterior_leaflet().stiffness({0, 1, 1});
+  const Eigen::Matrix<double, 6, 6> C =
+      TransverselyIsotropic::posterior_leaflet().stiffness({0, 1, 1});
   const CorotationalTet<N> e(X, C);
   // Linear displacement field u = G X with symmetric G (pure strain, no rotation).
   Eigen::Matrix3d G;

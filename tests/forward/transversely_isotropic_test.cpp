@@ -1,8 +1,8 @@
 #include "mvtwin/forward/transversely_isotropic.h"
 
+#include <gtest/gtest.h>
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 namespace mvtwin::forward {
 namespace {

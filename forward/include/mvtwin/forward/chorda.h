@@ -22,8 +22,8 @@ struct ChordaLaw {
   static ChordaLaw basal();
   ChordaLaw stiffness_scaled(double s) const { return {area, e_low * s, e_high * s, strain_break}; }
 
-  double stress(double strain) const;   ///< MPa
-  double tangent(double strain) const;  ///< d stress / d strain, MPa
+  double stress(double strain) const;          ///< MPa
+  double tangent(double strain) const;         ///< d stress / d strain, MPa
   double energy_density(double strain) const;  ///< integral of stress, MPa
 };
 

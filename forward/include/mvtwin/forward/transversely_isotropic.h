@@ -9,11 +9,11 @@ namespace mvtwin::forward {
 /// Five constants: E1 = E_fibre, E2 = E3 = E_cross, nu12 = nu13, nu23, G12 = G13; and
 /// G23 = E2 / (2 (1 + nu23)). Moduli in MPa.
 struct TransverselyIsotropic {
-  double e_fibre = 0.0;  ///< E1, MPa
-  double e_cross = 0.0;  ///< E2 = E3, MPa
-  double g_fibre = 0.0;  ///< G12 = G13, MPa
-  double nu_fibre = 0.0; ///< nu12 = nu13
-  double nu_cross = 0.0; ///< nu23
+  double e_fibre = 0.0;   ///< E1, MPa
+  double e_cross = 0.0;   ///< E2 = E3, MPa
+  double g_fibre = 0.0;   ///< G12 = G13, MPa
+  double nu_fibre = 0.0;  ///< nu12 = nu13
+  double nu_cross = 0.0;  ///< nu23
 
   /// The paper's anterior / posterior leaflet (Mansi et al. 2012, Table 1), nu = 0.488.
   static TransverselyIsotropic anterior_leaflet();

@@ -1,0 +1,99 @@
+#include "mvtwin/forward/elastic_body.h"
+
+#include <string>
+
+#include <Eigen/LU>
+
+#include "mvtwin/core/error.h"
+
+namespace mvtwin::forward {
+
+ElasticBody::ElasticBody(SolidMesh mesh,
+                         const std::function<TransverselyIsotropic(int tag)>& material)
+    : mesh_(std::move(mesh)) {
+  const int n = mesh_.nodes_per_element();
+  for (int e = 0; e < mesh_.num_elements(); ++e) {
+    const TransverselyIsotropic m = material(mesh_.tag[e]);
+    std::string err;
+    if (!m.is_valid(&err)) throw Error("element " + std::to_string(e) + " material: " + err);
+    const Eigen::Matrix<double, 6, 6> C = m.stiffness(mesh_.fibre.row(e).transpose());
+    auto rest = [&](auto& X) {
+      for (int a = 0; a < n; ++a) X.row(a) = mesh_.V.row(mesh_.T(e, a));
+      Eigen::Matrix3d Dm;
+      for (int j = 0; j < 3; ++j) Dm.col(j) = (X.row(j + 1) - X.row(0)).transpose();
+      if (!(Dm.determinant() > 0))
+        throw Error("element " + std::to_string(e) + " is inverted or flat at rest");
+    };
+    if (n == 4) {
+      CorotationalTet<4>::Nodes X;
+      rest(X);
+      linear_.emplace_back(X, C);
+    } else {
+      CorotationalTet<10>::Nodes X;
+      rest(X);
+      quadratic_.emplace_back(X, C);
+    }
+  }
+}
+
+Eigen::VectorXd ElasticBody::rest_positions() const {
+  Eigen::VectorXd x(num_dofs());
+  for (int i = 0; i < mesh_.num_nodes(); ++i) x.segment<3>(3 * i) = mesh_.V.row(i).transpose();
+  return x;
+}
+
+Eigen::VectorXd ElasticBody::lumped_mass(double density) const {
+  Eigen::VectorXd m = Eigen::VectorXd::Zero(mesh_.num_nodes());
+  const int n = mesh_.nodes_per_element();
+  for (int e = 0; e < mesh_.num_elements(); ++e) {
+    const double vol = n == 4 ? linear_[e].rest_volume() : quadratic_[e].rest_volume();
+    for (int a = 0; a < n; ++a) {
+      const double f = n == 4 ? CorotationalTet<4>::mass_fractions()[a]
+                              : CorotationalTet<10>::mass_fractions()[a];
+      m[mesh_.T(e, a)] += density * vol * f;
+    }
+  }
+  return m;
+}
+
+template <int N>
+int ElasticBody::accumulate_order(const std::vector<CorotationalTet<N>>& elems,
+                                  const Eigen::VectorXd& x, Eigen::VectorXd* g,
+                                  std::vector<Eigen::Triplet<double>>* H, Tangent tangent,
+                                  double* energy) const {
+  using Tet = CorotationalTet<N>;
+  typename Tet::Nodes xe;
+  typename Tet::Vector ge;
+  typename Tet::Matrix He;
+  for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
+    for (int a = 0; a < N; ++a) xe.row(a) = x.segment<3>(3 * mesh_.T(e, a)).transpose();
+    double en = 0.0;
+    const bool ok = elems[e].evaluate(xe, g ? &ge : nullptr,
+                                      H && tangent == Tangent::kConsistent ? &He : nullptr,
+                                      H && tangent == Tangent::kWarped ? &He : nullptr, &en);
+    if (!ok) return e;
+    if (energy) *energy += en;
+    for (int a = 0; a < N; ++a) {
+      const int ia = mesh_.T(e, a);
+      if (g) g->segment<3>(3 * ia) += ge.template segment<3>(3 * a);
+      if (!H) continue;
+      for (int b = 0; b < N; ++b) {
+        const int ib = mesh_.T(e, b);
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c)
+            H->emplace_back(3 * ia + r, 3 * ib + c, He(3 * a + r, 3 * b + c));
+        }
+      }
+    }
+  }
+  return -1;
+}
+
+int ElasticBody::accumulate(const Eigen::VectorXd& x, Eigen::VectorXd* g,
+                            std::vector<Eigen::Triplet<double>>* H, Tangent tangent,
+                            double* energy) const {
+  if (mesh_.order == TetOrder::kLinear) return accumulate_order(linear_, x, g, H, tangent, energy);
+  return accumulate_order(quadratic_, x, g, H, tangent, energy);
+}
+
+}  // namespace mvtwin::forward
