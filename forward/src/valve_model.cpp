@@ -191,7 +191,17 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
     c.group = static_cast<ChordaeGroup>((anterolateral ? 0 : 2) + (marginal ? 0 : 1));
     c.u = u;
     c.v = v;
-    c.ed_length = (m.mesh.V.row(c.node).transpose() - m.papillary_ed[c.papillary]).norm();
+    for (int l = 0; l <= L; ++l) {
+      c.nodes.push_back(m.node(u, v, l));
+      if (l > 0 && opt.order == TetOrder::kQuadratic) {
+        const int mid = m.mesh.mid_node(m.node(u, v, l - 1), m.node(u, v, l));
+        if (mid >= 0) c.nodes.push_back(mid);
+      }
+    }
+    Eigen::Vector3d insertion = Eigen::Vector3d::Zero();
+    for (int k : c.nodes) insertion += m.mesh.V.row(k).transpose();
+    insertion /= static_cast<double>(c.nodes.size());
+    c.ed_length = (insertion - m.papillary_ed[c.papillary]).norm();
     m.chordae.push_back(c);
   };
   for (int k = 0; k < opt.marginal_chordae; ++k)

@@ -31,13 +31,17 @@ struct ModelOptions {
 
 /// One chorda of the model: from a leaflet node to a papillary tip.
 struct ModelChorda {
-  int node = -1;      ///< leaflet node (ventricular surface)
+  int node = -1;      ///< leaflet node on the ventricular surface at the insertion
+  /// The insertion point is the mean of these nodes: the whole leaflet cross-section at the
+  /// site (every layer and the mid-edge nodes between them), so that a taut chorda does not
+  /// crush a single element.
+  std::vector<int> nodes;
   int papillary = 0;  ///< 0 anterolateral, 1 posteromedial tip
   ChordaeGroup group = ChordaeGroup::kAnterolateralMarginal;
   bool marginal = true;
   int u = 0, v = 0;  ///< grid site of the insertion
-  double ed_length =
-      0.0;  ///< insertion-to-tip distance at end-diastole, mm (rest length = this x factor)
+  /// Insertion-point-to-tip distance at end-diastole, mm (rest length = this x factor).
+  double ed_length = 0.0;
 };
 
 /// The finite-element model of a valve at end-diastole.

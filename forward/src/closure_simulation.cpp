@@ -1,0 +1,396 @@
+#include "mvtwin/forward/closure_simulation.h"
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include <Eigen/Geometry>
+#include <Eigen/CholmodSupport>
+#include <Eigen/SparseCholesky>
+
+#include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/forward/chorda.h"
+
+namespace mvtwin::forward {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
+/// The prescribed boundary (annulus, papillary tips, landmarks) over the simulated time,
+/// interpolated between image frames by Catmull-Rom (C1 in time).
+class BoundaryMotion {
+ public:
+  BoundaryMotion(const ValveSequence& s, int ures, double stretch, bool annulus_motion, bool papillary_motion)
+      : seq_(s), stretch_(stretch), annulus_motion_(annulus_motion), papillary_motion_(papillary_motion) {
+    for (const ValveFrame& f : s.frames) annulus_.push_back(resample_closed_curve(f.annulus, ures));
+  }
+  double duration() const {
+    return stretch_ * (seq_.frames[seq_.first_closed].time_s - seq_.frames[seq_.end_diastole].time_s);
+  }
+  double observed_time(double tau) const { return seq_.frames[seq_.end_diastole].time_s + tau / stretch_; }
+
+  // Catmull-Rom weights over frames (f-1, f, f+1, f+2) at observed time t.
+  void weights(double t, int* f, Eigen::Vector4d* w) const {
+    const int n = seq_.num_frames();
+    int i = seq_.end_diastole;
+    while (i + 1 < n - 1 && seq_.frames[i + 1].time_s <= t) ++i;
+    while (i > 0 && seq_.frames[i].time_s > t) --i;
+    const double t0 = seq_.frames[i].time_s, t1 = seq_.frames[std::min(i + 1, n - 1)].time_s;
+    const double x = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 0.0;
+    const double x2 = x * x, x3 = x2 * x;
+    *f = i;
+    *w << -0.5 * x3 + x2 - 0.5 * x, 1.5 * x3 - 2.5 * x2 + 1.0, -1.5 * x3 + 2.0 * x2 + 0.5 * x, 0.5 * x3 - 0.5 * x2;
+  }
+  int clampf(int i) const { return std::clamp(i, 0, seq_.num_frames() - 1); }
+
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus(double tau) const {
+    if (!annulus_motion_) return annulus_[seq_.end_diastole];
+    int f;
+    Eigen::Vector4d w;
+    weights(observed_time(tau), &f, &w);
+    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a = w[0] * annulus_[clampf(f - 1)];
+    for (int k = 1; k < 4; ++k) a += w[k] * annulus_[clampf(f - 1 + k)];
+    return a;
+  }
+  Eigen::Vector3d landmark(Landmark l, double tau) const {
+    const bool papillary = l == Landmark::kAnterolateralPapillaryTip || l == Landmark::kPosteromedialPapillaryTip;
+    if ((papillary && !papillary_motion_) || (!papillary && !annulus_motion_)) {
+      return seq_.frames[seq_.end_diastole].landmark(l);
+    }
+    int f;
+    Eigen::Vector4d w;
+    weights(observed_time(tau), &f, &w);
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) {
+      const ValveFrame& fr = seq_.frames[clampf(f - 1 + k)];
+      // An unobserved neighbour falls back to the nearest observed frame of the window.
+      p += w[k] * (fr.observed(l) ? fr.landmark(l) : seq_.frames[clampf(f + (k >= 2))].landmark(l));
+    }
+    return p;
+  }
+  bool observed_at_ed(Landmark l) const { return seq_.frames[seq_.end_diastole].observed(l); }
+
+ private:
+  const ValveSequence& seq_;
+  double stretch_;
+  bool annulus_motion_, papillary_motion_;
+  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> annulus_;
+};
+
+}  // namespace
+
+bool ClosureOptions::is_valid(std::string* error) const {
+  if (!model.is_valid(error)) return false;
+  auto bad = [&](const std::string& m) {
+    *error = m;
+    return false;
+  };
+  if (!(dt > 0 && dt <= 0.5)) return bad("dt must be in (0, 0.5] s");
+  if (!(stretch > 0 && stretch <= 1000)) return bad("stretch must be in (0, 1000]");
+  if (!(density > 0)) return bad("density must be positive");
+  if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0)) return bad("Rayleigh coefficients must be >= 0");
+  if (newton_iterations < 1 || newton_iterations > 100) return bad("newton_iterations must be in 1..100");
+  if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
+  if (max_step_halvings < 0 || max_step_halvings > 10) return bad("max_step_halvings must be in 0..10");
+  for (int k : ruptured_marginal_chordae) {
+    if (k < 0 || k >= model.marginal_chordae) return bad("ruptured chorda index out of range");
+  }
+  return true;
+}
+
+std::string ClosureSummary::brief_report() const {
+  std::ostringstream os;
+  os << (status == ClosureStatus::kConverged ? "closure simulated" : "closure FAILED: " + reason) << "; "
+     << steps << " steps (" << halvings << " halvings, " << newton_iterations << " Newton iterations), "
+     << dofs << " dofs, " << elements << " elements; " << wall_s << " s (assembly " << assembly_s << ", solve "
+     << solve_s << ", contact " << contact_s << ", other " << other_s << ")";
+  return os.str();
+}
+
+ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& params,
+                               const ClosureOptions& opt) {
+  const auto t_start = Clock::now();
+  std::string err;
+  if (!opt.is_valid(&err)) throw Error("closure options: " + err);
+  if (seq.first_closed <= seq.end_diastole || seq.end_diastole < 0) {
+    throw Error("closure simulation: the sequence needs an end-diastolic frame before a first closed frame");
+  }
+  const ValveModel model = build_valve_model(seq, opt.model);
+  const SolidMesh& mesh = model.mesh;
+  const ElasticBody body(mesh, [&](int tag) {
+    return tag == static_cast<int>(LeafletTag::kAnterior)
+               ? TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale)
+               : TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale);
+  });
+  const int n = mesh.num_nodes(), ndof = 3 * n;
+  const int U = opt.model.ures, V = opt.model.vres, L = opt.model.layers;
+  const BoundaryMotion motion(seq, U, opt.stretch, opt.annulus_motion, opt.papillary_motion);
+  const double T = motion.duration();
+
+  // Chordae with their rest lengths and laws.
+  struct Cable {
+    std::vector<int> nodes;  // the insertion point is their mean
+    int tip;
+    double rest;
+    ChordaLaw law;
+  };
+  std::vector<Cable> cables;
+  {
+    int marginal_index = 0;
+    for (const ModelChorda& c : model.chordae) {
+      if (c.marginal) {
+        const int k = marginal_index++;
+        if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(), k) !=
+            opt.ruptured_marginal_chordae.end()) {
+          continue;
+        }
+      }
+      const double factor = params.restlength_factor[static_cast<int>(c.group)];
+      const ChordaLaw law = c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
+                                       : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
+      cables.push_back({c.nodes, c.papillary, c.ed_length * factor, law});
+    }
+  }
+
+  // Prescribed nodes follow the displacement of their annulus grid points.
+  std::map<int, int> corner_u;  // annulus corner node -> u
+  for (int l = 0; l <= L; ++l) {
+    for (int u = 0; u < U; ++u) corner_u[model.node(u, 0, l)] = u;
+  }
+  struct Prescribed {
+    int node, ua, ub;
+  };
+  std::vector<Prescribed> prescribed;
+  std::vector<char> fixed(ndof, 0);
+  for (int node : model.annulus_nodes) {
+    int ua = -1, ub = -1;
+    if (corner_u.count(node)) {
+      ua = ub = corner_u[node];
+    } else {
+      for (const auto& [edge, mid] : mesh.mid_edge) {
+        if (mid == node) {
+          ua = corner_u.at(edge.first);
+          ub = corner_u.at(edge.second);
+          break;
+        }
+      }
+    }
+    prescribed.push_back({node, ua, ub});
+    fixed[3 * node] = fixed[3 * node + 1] = fixed[3 * node + 2] = 1;
+  }
+  std::vector<int> to_free(ndof, -1), free_dofs;
+  for (int i = 0; i < ndof; ++i) {
+    if (!fixed[i]) {
+      to_free[i] = static_cast<int>(free_dofs.size());
+      free_dofs.push_back(i);
+    }
+  }
+  const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus_ed = motion.annulus(0.0);
+  const Eigen::VectorXd X = body.rest_positions();
+  auto prescribed_positions = [&](double tau, Eigen::VectorXd* x) {
+    const auto a = motion.annulus(tau);
+    for (const Prescribed& p : prescribed) {
+      const Eigen::Vector3d d = 0.5 * ((a.row(p.ua) - annulus_ed.row(p.ua)) + (a.row(p.ub) - annulus_ed.row(p.ub))).transpose();
+      x->segment<3>(3 * p.node) = X.segment<3>(3 * p.node) + d;
+    }
+  };
+
+  // Pressure faces: consistent nodal weights (corners for linear, mid-edges for quadratic).
+  struct PressureFace {
+    int a, b, c;
+    int load[3];
+  };
+  std::vector<PressureFace> pfaces;
+  for (const Eigen::Vector3i& f : model.ventricular_faces) {
+    PressureFace pf{f[0], f[1], f[2], {f[0], f[1], f[2]}};
+    if (mesh.order == TetOrder::kQuadratic) {
+      pf.load[0] = mesh.mid_node(f[0], f[1]);
+      pf.load[1] = mesh.mid_node(f[1], f[2]);
+      pf.load[2] = mesh.mid_node(f[0], f[2]);
+    }
+    pfaces.push_back(pf);
+  }
+
+  const Eigen::VectorXd mass = body.lumped_mass(opt.density);
+  Eigen::VectorXd mass_dof(ndof);
+  for (int i = 0; i < ndof; ++i) mass_dof[i] = mass[i / 3];
+  ClosureResult result;
+  ClosureSummary& sum = result.summary;
+  sum.dofs = static_cast<int>(free_dofs.size());
+  sum.elements = mesh.num_elements();
+
+  auto record = [&](double tau, const Eigen::VectorXd& x) {
+    ClosureSample s;
+    s.time_s = tau;
+    s.observed_time_s = motion.observed_time(tau);
+    LeafletGrid::Points P(U * V, 3);
+    for (int v = 0; v < V; ++v) {
+      for (int u = 0; u < U; ++u) P.row(v * U + u) = x.segment<3>(3 * model.node(u, v, 0)).transpose();
+    }
+    s.la_surface = LeafletGrid(U, V, P);
+    ValveFrame fr;
+    fr.annulus = P.topRows(U);
+    for (int l = 0; l < kNumLandmarks; ++l) {
+      const Landmark lm = static_cast<Landmark>(l);
+      fr.landmark_observed[l] = l <= index(Landmark::kPosteromedialCommissure) && motion.observed_at_ed(lm);
+      fr.landmarks[l] = fr.landmark_observed[l] ? motion.landmark(lm, tau) : Eigen::Vector3d::Constant(NAN);
+    }
+    fr.la_surface = s.la_surface;
+    const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
+    s.anterior_tip_mm = t.anterior_mm;
+    s.posterior_tip_mm = t.posterior_mm;
+    result.samples.push_back(std::move(s));
+  };
+
+  Eigen::VectorXd x = X, v = Eigen::VectorXd::Zero(ndof);
+  // CHOLMOD supernodal Cholesky; the symbolic analysis is done once (the pattern is fixed).
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
+  bool analyzed = false;
+  std::vector<Eigen::Triplet<double>> trip_el, trip_all;
+
+  // One implicit Euler step from (x, v) at tau to tau + h; false with a reason on failure.
+  auto step = [&](double tau, double h, Eigen::VectorXd* x_io, Eigen::VectorXd* v_io, std::string* why) -> bool {
+    const Eigen::VectorXd x0 = *x_io, v0 = *v_io;
+    const double tau1 = tau + h;
+    const double p = params.peak_pressure_mpa * smoothstep(tau1 / T);
+    const Eigen::Vector3d tips[2] = {motion.landmark(Landmark::kAnterolateralPapillaryTip, tau1),
+                                     motion.landmark(Landmark::kPosteromedialPapillaryTip, tau1)};
+    Eigen::VectorXd xp1 = x0;
+    prescribed_positions(tau1, &xp1);
+    Eigen::VectorXd v1 = v0;
+    for (const Prescribed& pr : prescribed) v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
+    for (int it = 0; it < opt.newton_iterations; ++it) {
+      auto ta = Clock::now();
+      const Eigen::VectorXd x1 = x0 + h * v1;
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(ndof);
+      trip_el.clear();
+      const int bad = body.accumulate(x1, &g, &trip_el, opt.tangent);
+      if (bad >= 0) {
+        *why = "element " + std::to_string(bad) + " inverted";
+        return false;
+      }
+      // H_el v1 for the stiffness-proportional damping.
+      Eigen::VectorXd Hv = Eigen::VectorXd::Zero(ndof);
+      for (const auto& t : trip_el) Hv[t.row()] += t.value() * v1[t.col()];
+      trip_all.clear();
+      trip_all.reserve(trip_el.size() + 9 * cables.size() + ndof);
+      const double ck = h * opt.rayleigh_stiffness + h * h;
+      for (const auto& t : trip_el) {
+        const int r = to_free[t.row()], c = to_free[t.col()];
+        if (r >= 0 && c >= 0) trip_all.emplace_back(r, c, ck * t.value());
+      }
+      Eigen::VectorXd f = -g - opt.rayleigh_mass * mass_dof.cwiseProduct(v1) - opt.rayleigh_stiffness * Hv;
+      for (const Cable& cb : cables) {
+        Eigen::Matrix<double, 6, 1> gc;
+        Eigen::Matrix<double, 6, 6> Hc;
+        const double w = 1.0 / static_cast<double>(cb.nodes.size());
+        Eigen::Vector3d ins = Eigen::Vector3d::Zero();
+        for (int k : cb.nodes) ins += w * x1.segment<3>(3 * k);
+        chorda_gradient(cb.law, cb.rest, ins, tips[cb.tip], &gc, &Hc);
+        for (int a : cb.nodes) {
+          f.segment<3>(3 * a) -= w * gc.head<3>();
+          for (int b : cb.nodes) {
+            for (int r = 0; r < 3; ++r) {
+              for (int c = 0; c < 3; ++c) {
+                const int fr = to_free[3 * a + r], fc = to_free[3 * b + c];
+                if (fr >= 0 && fc >= 0) trip_all.emplace_back(fr, fc, h * h * w * w * Hc(r, c));
+              }
+            }
+          }
+        }
+      }
+      for (const PressureFace& pf : pfaces) {
+        const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b), c = x1.segment<3>(3 * pf.c);
+        const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
+        for (int k = 0; k < 3; ++k) f.segment<3>(3 * pf.load[k]) += force;
+      }
+      for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) {
+          const int fr = to_free[3 * i + k];
+          if (fr >= 0) trip_all.emplace_back(fr, fr, (1.0 + h * opt.rayleigh_mass) * mass[i]);
+        }
+      }
+      Eigen::VectorXd r(free_dofs.size());
+      for (size_t i = 0; i < free_dofs.size(); ++i) {
+        const int d = free_dofs[i];
+        r[static_cast<Eigen::Index>(i)] = mass[d / 3] * (v1[d] - v0[d]) - h * f[d];
+      }
+      Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(free_dofs.size()), static_cast<Eigen::Index>(free_dofs.size()));
+      A.setFromTriplets(trip_all.begin(), trip_all.end());
+      sum.assembly_s += seconds_since(ta);
+      auto ts = Clock::now();
+      if (!analyzed) {
+        solver.analyzePattern(A);
+        analyzed = true;
+      }
+      solver.factorize(A);
+      if (solver.info() != Eigen::Success) {
+        *why = "linear solver failed (matrix not positive definite)";
+        return false;
+      }
+      const Eigen::VectorXd dv = solver.solve(-r);
+      sum.solve_s += seconds_since(ts);
+      if (!dv.allFinite()) {
+        *why = "non-finite velocity update";
+        return false;
+      }
+      for (size_t i = 0; i < free_dofs.size(); ++i) v1[free_dofs[i]] += dv[static_cast<Eigen::Index>(i)];
+      ++sum.newton_iterations;
+      sum.final_update_norm = dv.lpNorm<Eigen::Infinity>();
+      if (sum.final_update_norm < opt.newton_tolerance) break;
+    }
+    *x_io = x0 + h * v1;
+    *v_io = v1;
+    return x_io->allFinite();
+  };
+
+  record(0.0, x);
+  double tau = 0.0;
+  int step_index = 0;
+  while (tau < T - 1e-12) {
+    double h = std::min(opt.dt, T - tau);
+    std::string why;
+    int halvings = 0;
+    Eigen::VectorXd xt = x, vt = v;
+    while (!step(tau, h, &xt, &vt, &why)) {
+      if (halvings >= opt.max_step_halvings) {
+        sum.status = ClosureStatus::kFailed;
+        sum.reason = why + " at t = " + std::to_string(tau) + " s (after " + std::to_string(halvings) + " step halvings)";
+        result.positions = x;
+        record(tau, x);
+        sum.wall_s = seconds_since(t_start);
+        sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
+        return result;
+      }
+      ++halvings;
+      ++sum.halvings;
+      h *= 0.5;
+      xt = x;
+      vt = v;
+    }
+    x = xt;
+    v = vt;
+    tau += h;
+    ++sum.steps;
+    ++step_index;
+    if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12) record(tau, x);
+  }
+  record(tau, x);
+  result.positions = x;
+  sum.status = ClosureStatus::kConverged;
+  sum.wall_s = seconds_since(t_start);
+  sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
+  return result;
+}
+
+}  // namespace mvtwin::forward
