@@ -5,8 +5,8 @@
 #include <map>
 #include <sstream>
 
-#include <Eigen/Geometry>
 #include <Eigen/CholmodSupport>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 
 #include "mvtwin/core/annulus_plane.h"
@@ -30,14 +30,21 @@ double smoothstep(double x) {
 /// interpolated between image frames by Catmull-Rom (C1 in time).
 class BoundaryMotion {
  public:
-  BoundaryMotion(const ValveSequence& s, int ures, double stretch, bool annulus_motion, bool papillary_motion)
-      : seq_(s), stretch_(stretch), annulus_motion_(annulus_motion), papillary_motion_(papillary_motion) {
+  BoundaryMotion(const ValveSequence& s, int ures, double stretch, bool annulus_motion,
+                 bool papillary_motion)
+      : seq_(s),
+        stretch_(stretch),
+        annulus_motion_(annulus_motion),
+        papillary_motion_(papillary_motion) {
     for (const ValveFrame& f : s.frames) annulus_.push_back(resample_closed_curve(f.annulus, ures));
   }
   double duration() const {
-    return stretch_ * (seq_.frames[seq_.first_closed].time_s - seq_.frames[seq_.end_diastole].time_s);
+    return stretch_ *
+           (seq_.frames[seq_.first_closed].time_s - seq_.frames[seq_.end_diastole].time_s);
   }
-  double observed_time(double tau) const { return seq_.frames[seq_.end_diastole].time_s + tau / stretch_; }
+  double observed_time(double tau) const {
+    return seq_.frames[seq_.end_diastole].time_s + tau / stretch_;
+  }
 
   // Catmull-Rom weights over frames (f-1, f, f+1, f+2) at observed time t.
   void weights(double t, int* f, Eigen::Vector4d* w) const {
@@ -49,7 +56,8 @@ class BoundaryMotion {
     const double x = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 0.0;
     const double x2 = x * x, x3 = x2 * x;
     *f = i;
-    *w << -0.5 * x3 + x2 - 0.5 * x, 1.5 * x3 - 2.5 * x2 + 1.0, -1.5 * x3 + 2.0 * x2 + 0.5 * x, 0.5 * x3 - 0.5 * x2;
+    *w << -0.5 * x3 + x2 - 0.5 * x, 1.5 * x3 - 2.5 * x2 + 1.0, -1.5 * x3 + 2.0 * x2 + 0.5 * x,
+        0.5 * x3 - 0.5 * x2;
   }
   int clampf(int i) const { return std::clamp(i, 0, seq_.num_frames() - 1); }
 
@@ -63,7 +71,8 @@ class BoundaryMotion {
     return a;
   }
   Eigen::Vector3d landmark(Landmark l, double tau) const {
-    const bool papillary = l == Landmark::kAnterolateralPapillaryTip || l == Landmark::kPosteromedialPapillaryTip;
+    const bool papillary =
+        l == Landmark::kAnterolateralPapillaryTip || l == Landmark::kPosteromedialPapillaryTip;
     if ((papillary && !papillary_motion_) || (!papillary && !annulus_motion_)) {
       return seq_.frames[seq_.end_diastole].landmark(l);
     }
@@ -98,10 +107,13 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(dt > 0 && dt <= 0.5)) return bad("dt must be in (0, 0.5] s");
   if (!(stretch > 0 && stretch <= 1000)) return bad("stretch must be in (0, 1000]");
   if (!(density > 0)) return bad("density must be positive");
-  if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0)) return bad("Rayleigh coefficients must be >= 0");
-  if (newton_iterations < 1 || newton_iterations > 100) return bad("newton_iterations must be in 1..100");
+  if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0))
+    return bad("Rayleigh coefficients must be >= 0");
+  if (newton_iterations < 1 || newton_iterations > 100)
+    return bad("newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
-  if (max_step_halvings < 0 || max_step_halvings > 10) return bad("max_step_halvings must be in 0..10");
+  if (max_step_halvings < 0 || max_step_halvings > 10)
+    return bad("max_step_halvings must be in 0..10");
   for (int k : ruptured_marginal_chordae) {
     if (k < 0 || k >= model.marginal_chordae) return bad("ruptured chorda index out of range");
   }
@@ -110,10 +122,11 @@ bool ClosureOptions::is_valid(std::string* error) const {
 
 std::string ClosureSummary::brief_report() const {
   std::ostringstream os;
-  os << (status == ClosureStatus::kConverged ? "closure simulated" : "closure FAILED: " + reason) << "; "
-     << steps << " steps (" << halvings << " halvings, " << newton_iterations << " Newton iterations), "
-     << dofs << " dofs, " << elements << " elements; " << wall_s << " s (assembly " << assembly_s << ", solve "
-     << solve_s << ", contact " << contact_s << ", other " << other_s << ")";
+  os << (status == ClosureStatus::kConverged ? "closure simulated" : "closure FAILED: " + reason)
+     << "; " << steps << " steps (" << halvings << " halvings, " << newton_iterations
+     << " Newton iterations), " << dofs << " dofs, " << elements << " elements; " << wall_s
+     << " s (assembly " << assembly_s << ", solve " << solve_s << ", contact " << contact_s
+     << ", other " << other_s << ")";
   return os.str();
 }
 
@@ -123,7 +136,9 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   std::string err;
   if (!opt.is_valid(&err)) throw Error("closure options: " + err);
   if (seq.first_closed <= seq.end_diastole || seq.end_diastole < 0) {
-    throw Error("closure simulation: the sequence needs an end-diastolic frame before a first closed frame");
+    throw Error(
+        "closure simulation: the sequence needs an end-diastolic frame before a first closed "
+        "frame");
   }
   const ValveModel model = build_valve_model(seq, opt.model);
   const SolidMesh& mesh = model.mesh;
@@ -150,14 +165,15 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     for (const ModelChorda& c : model.chordae) {
       if (c.marginal) {
         const int k = marginal_index++;
-        if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(), k) !=
-            opt.ruptured_marginal_chordae.end()) {
+        if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(),
+                      k) != opt.ruptured_marginal_chordae.end()) {
           continue;
         }
       }
       const double factor = params.restlength_factor[static_cast<int>(c.group)];
-      const ChordaLaw law = c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
-                                       : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
+      const ChordaLaw law =
+          c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
+                     : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
       cables.push_back({c.nodes, c.papillary, c.ed_length * factor, law});
     }
   }
@@ -200,7 +216,9 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   auto prescribed_positions = [&](double tau, Eigen::VectorXd* x) {
     const auto a = motion.annulus(tau);
     for (const Prescribed& p : prescribed) {
-      const Eigen::Vector3d d = 0.5 * ((a.row(p.ua) - annulus_ed.row(p.ua)) + (a.row(p.ub) - annulus_ed.row(p.ub))).transpose();
+      const Eigen::Vector3d d =
+          0.5 *
+          ((a.row(p.ua) - annulus_ed.row(p.ua)) + (a.row(p.ub) - annulus_ed.row(p.ub))).transpose();
       x->segment<3>(3 * p.node) = X.segment<3>(3 * p.node) + d;
     }
   };
@@ -235,15 +253,18 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     s.observed_time_s = motion.observed_time(tau);
     LeafletGrid::Points P(U * V, 3);
     for (int v = 0; v < V; ++v) {
-      for (int u = 0; u < U; ++u) P.row(v * U + u) = x.segment<3>(3 * model.node(u, v, 0)).transpose();
+      for (int u = 0; u < U; ++u)
+        P.row(v * U + u) = x.segment<3>(3 * model.node(u, v, 0)).transpose();
     }
     s.la_surface = LeafletGrid(U, V, P);
     ValveFrame fr;
     fr.annulus = P.topRows(U);
     for (int l = 0; l < kNumLandmarks; ++l) {
       const Landmark lm = static_cast<Landmark>(l);
-      fr.landmark_observed[l] = l <= index(Landmark::kPosteromedialCommissure) && motion.observed_at_ed(lm);
-      fr.landmarks[l] = fr.landmark_observed[l] ? motion.landmark(lm, tau) : Eigen::Vector3d::Constant(NAN);
+      fr.landmark_observed[l] =
+          l <= index(Landmark::kPosteromedialCommissure) && motion.observed_at_ed(lm);
+      fr.landmarks[l] =
+          fr.landmark_observed[l] ? motion.landmark(lm, tau) : Eigen::Vector3d::Constant(NAN);
     }
     fr.la_surface = s.la_surface;
     const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
@@ -259,7 +280,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   std::vector<Eigen::Triplet<double>> trip_el, trip_all;
 
   // One implicit Euler step from (x, v) at tau to tau + h; false with a reason on failure.
-  auto step = [&](double tau, double h, Eigen::VectorXd* x_io, Eigen::VectorXd* v_io, std::string* why) -> bool {
+  auto step = [&](double tau, double h, Eigen::VectorXd* x_io, Eigen::VectorXd* v_io,
+                  std::string* why) -> bool {
     const Eigen::VectorXd x0 = *x_io, v0 = *v_io;
     const double tau1 = tau + h;
     const double p = params.peak_pressure_mpa * smoothstep(tau1 / T);
@@ -268,7 +290,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     Eigen::VectorXd xp1 = x0;
     prescribed_positions(tau1, &xp1);
     Eigen::VectorXd v1 = v0;
-    for (const Prescribed& pr : prescribed) v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
+    for (const Prescribed& pr : prescribed)
+      v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
     for (int it = 0; it < opt.newton_iterations; ++it) {
       auto ta = Clock::now();
       const Eigen::VectorXd x1 = x0 + h * v1;
@@ -289,7 +312,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         const int r = to_free[t.row()], c = to_free[t.col()];
         if (r >= 0 && c >= 0) trip_all.emplace_back(r, c, ck * t.value());
       }
-      Eigen::VectorXd f = -g - opt.rayleigh_mass * mass_dof.cwiseProduct(v1) - opt.rayleigh_stiffness * Hv;
+      Eigen::VectorXd f =
+          -g - opt.rayleigh_mass * mass_dof.cwiseProduct(v1) - opt.rayleigh_stiffness * Hv;
       for (const Cable& cb : cables) {
         Eigen::Matrix<double, 6, 1> gc;
         Eigen::Matrix<double, 6, 6> Hc;
@@ -310,7 +334,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         }
       }
       for (const PressureFace& pf : pfaces) {
-        const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b), c = x1.segment<3>(3 * pf.c);
+        const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b),
+                              c = x1.segment<3>(3 * pf.c);
         const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
         for (int k = 0; k < 3; ++k) f.segment<3>(3 * pf.load[k]) += force;
       }
@@ -325,7 +350,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         const int d = free_dofs[i];
         r[static_cast<Eigen::Index>(i)] = mass[d / 3] * (v1[d] - v0[d]) - h * f[d];
       }
-      Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(free_dofs.size()), static_cast<Eigen::Index>(free_dofs.size()));
+      Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(free_dofs.size()),
+                                    static_cast<Eigen::Index>(free_dofs.size()));
       A.setFromTriplets(trip_all.begin(), trip_all.end());
       sum.assembly_s += seconds_since(ta);
       auto ts = Clock::now();
@@ -344,7 +370,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         *why = "non-finite velocity update";
         return false;
       }
-      for (size_t i = 0; i < free_dofs.size(); ++i) v1[free_dofs[i]] += dv[static_cast<Eigen::Index>(i)];
+      for (size_t i = 0; i < free_dofs.size(); ++i)
+        v1[free_dofs[i]] += dv[static_cast<Eigen::Index>(i)];
       ++sum.newton_iterations;
       sum.final_update_norm = dv.lpNorm<Eigen::Infinity>();
       if (sum.final_update_norm < opt.newton_tolerance) break;
@@ -365,7 +392,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     while (!step(tau, h, &xt, &vt, &why)) {
       if (halvings >= opt.max_step_halvings) {
         sum.status = ClosureStatus::kFailed;
-        sum.reason = why + " at t = " + std::to_string(tau) + " s (after " + std::to_string(halvings) + " step halvings)";
+        sum.reason = why + " at t = " + std::to_string(tau) + " s (after " +
+                     std::to_string(halvings) + " step halvings)";
         result.positions = x;
         record(tau, x);
         sum.wall_s = seconds_since(t_start);
@@ -383,7 +411,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     tau += h;
     ++sum.steps;
     ++step_index;
-    if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12) record(tau, x);
+    if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12)
+      record(tau, x);
   }
   record(tau, x);
   result.positions = x;

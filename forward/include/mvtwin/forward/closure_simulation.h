@@ -14,9 +14,9 @@ namespace mvtwin::forward {
 /// Options of a closure simulation (SPEC Sec. 4). Units: s, t/mm^3, 1/s.
 struct ClosureOptions {
   ModelOptions model;
-  double dt = 0.01;        ///< time step of the simulated (stretched) time, s
-  double stretch = 10.0;   ///< simulated closure = stretch x observed closure duration
-  double density = 1.04e-9;  ///< t/mm^3 (1.04 g/mL)
+  double dt = 0.01;                 ///< time step of the simulated (stretched) time, s
+  double stretch = 10.0;            ///< simulated closure = stretch x observed closure duration
+  double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
   /// 1 = one linearization per step (the paper's scheme); more = Newton iterations until the
@@ -43,9 +43,9 @@ enum class ClosureStatus { kConverged, kFailed };
 
 struct ClosureSummary {
   ClosureStatus status = ClosureStatus::kFailed;
-  std::string reason;      ///< why it failed, empty on success
-  int steps = 0;           ///< steps taken (after halvings)
-  int halvings = 0;        ///< step retries with a halved step
+  std::string reason;  ///< why it failed, empty on success
+  int steps = 0;       ///< steps taken (after halvings)
+  int halvings = 0;    ///< step retries with a halved step
   int newton_iterations = 0;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;
@@ -57,9 +57,9 @@ struct ClosureSummary {
 
 /// One recorded instant of a simulation.
 struct ClosureSample {
-  double time_s = 0;           ///< simulated time
-  double observed_time_s = 0;  ///< time on the image sequence's clock
-  LeafletGrid la_surface;      ///< atrial surface on the model grid
+  double time_s = 0;                                 ///< simulated time
+  double observed_time_s = 0;                        ///< time on the image sequence's clock
+  LeafletGrid la_surface;                            ///< atrial surface on the model grid
   double anterior_tip_mm = 0, posterior_tip_mm = 0;  ///< to the annulus plane, + atrial
 };
 

@@ -31,7 +31,7 @@ struct ModelOptions {
 
 /// One chorda of the model: from a leaflet node to a papillary tip.
 struct ModelChorda {
-  int node = -1;      ///< leaflet node on the ventricular surface at the insertion
+  int node = -1;  ///< leaflet node on the ventricular surface at the insertion
   /// The insertion point is the mean of these nodes: the whole leaflet cross-section at the
   /// site (every layer and the mid-edge nodes between them), so that a taut chorda does not
   /// crush a single element.
