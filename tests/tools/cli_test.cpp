@@ -48,7 +48,7 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance"}) {
+  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance", "export-model", "simulate"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -65,6 +65,10 @@ TEST_F(Cli, PhantomInfoExport) {
   EXPECT_NE(r.out.find("[SYNTHETIC: virtual patient]"), std::string::npos);
   EXPECT_NE(r.out.find("end-diastole (frame"), std::string::npos);
   EXPECT_NE(r.out.find("hidden    pathology"), std::string::npos);
+  r = run("export-model " + path("p.h5") + " --out " + path("model") + " --ures 12 --vres 6");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "model" / "leaflets.vtu"));
+  EXPECT_TRUE(fs::exists(dir_ / "model" / "chordae.vtp"));
   r = run("export " + path("p.h5") + " --vtk " + path("vtk"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(fs::exists(dir_ / "vtk" / "la_surface.pvd"));
