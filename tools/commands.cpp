@@ -298,9 +298,11 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- export-model ----------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand("export-model", "Write the FE model at end-diastole for ParaView");
-    cmd->footer("Example:\n  mvtwin export-model patient.h5 --out model/\n"
-                "Writes leaflets.vtu (tags, fibres, prescribed flags), chordae.vtp, pressure_surface.vtp.");
+    auto* cmd =
+        app.add_subcommand("export-model", "Write the FE model at end-diastole for ParaView");
+    cmd->footer(
+        "Example:\n  mvtwin export-model patient.h5 --out model/\n"
+        "Writes leaflets.vtu (tags, fibres, prescribed flags), chordae.vtp, pressure_surface.vtp.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
     auto opts = std::make_shared<forward::ModelOptions>();
@@ -308,27 +310,33 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--out", *dir, "output directory")->required();
     add_grid_options(cmd, opts->ures, opts->vres);
-    cmd->add_option("--layers", opts->layers, "element layers through the thickness")->default_val(1);
-    cmd->add_option("--marginal-chordae", opts->marginal_chordae, "marginal chordae count")->default_val(28);
+    cmd->add_option("--layers", opts->layers, "element layers through the thickness")
+        ->default_val(1);
+    cmd->add_option("--marginal-chordae", opts->marginal_chordae, "marginal chordae count")
+        ->default_val(28);
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
         const Patient p = read_patient(*file, false);
         const forward::ValveModel m = forward::build_valve_model(p.sequence, *opts);
         const auto files = forward::export_model_vtk(m, *dir);
-        std::cout << "model of " << p.id << ": " << m.mesh.num_elements() << " quadratic tetrahedra, "
-                  << m.mesh.num_nodes() << " nodes, " << m.chordae.size() << " chordae, "
-                  << m.annulus_nodes.size() << " prescribed annulus nodes; wrote " << files.size()
-                  << " files to " << *dir << "\n";
+        std::cout << "model of " << p.id << ": " << m.mesh.num_elements()
+                  << " quadratic tetrahedra, " << m.mesh.num_nodes() << " nodes, "
+                  << m.chordae.size() << " chordae, " << m.annulus_nodes.size()
+                  << " prescribed annulus nodes; worst element quality " << m.min_quality
+                  << " (element " << m.worst_element << "); wrote " << files.size() << " files to "
+                  << *dir << "\n";
         return 0;
       };
     });
   }
   // ---- simulate (work in progress: no contact, no result file yet) -----------------------------
   {
-    auto* cmd = app.add_subcommand("simulate", "Simulate the closure of a patient (work in progress)");
-    cmd->footer("Example:\n  mvtwin simulate patient.h5 --vtk sim/ --ures 16 --vres 16\n"
-                "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
-                "Not yet: self-contact, the HDF5 result file, --set.");
+    auto* cmd =
+        app.add_subcommand("simulate", "Simulate the closure of a patient (work in progress)");
+    cmd->footer(
+        "Example:\n  mvtwin simulate patient.h5 --vtk sim/ --ures 16 --vres 16\n"
+        "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
+        "Not yet: self-contact, the HDF5 result file, --set.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
     auto opts = std::make_shared<forward::ClosureOptions>();
@@ -337,7 +345,8 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--vtk", *dir, "directory for the ParaView series");
     add_grid_options(cmd, opts->model.ures, opts->model.vres);
     cmd->add_option("--dt", opts->dt, "time step, s")->default_val(0.01);
-    cmd->add_option("--newton", *newton, "Newton iterations per step (1 = one linearization)")->default_val(1);
+    cmd->add_option("--newton", *newton, "Newton iterations per step (1 = one linearization)")
+        ->default_val(1);
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
         const Patient p = read_patient(*file, false);
@@ -353,11 +362,13 @@ void register_commands(CLI::App& app, Context& ctx) {
         std::cout << r.summary.brief_report() << "\n";
         for (const auto& s : r.samples) {
           std::cout << "  t = " << fmt(s.time_s, 2) << " s: tips to annulus plane, anterior "
-                    << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm) << " mm\n";
+                    << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm)
+                    << " mm\n";
         }
         if (!dir->empty()) {
           const auto files = forward::export_closure_vtk(r, *dir);
-          std::cout << "wrote " << files.size() << " files to " << *dir << " (open simulation.pvd)\n";
+          std::cout << "wrote " << files.size() << " files to " << *dir
+                    << " (open simulation.pvd)\n";
         }
         return r.summary.status == forward::ClosureStatus::kConverged ? 0 : 4;
       };

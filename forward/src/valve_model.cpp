@@ -155,6 +155,20 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
     lin.fibre.row(static_cast<Eigen::Index>(e)) = fibres[e].transpose();
   }
   lin.check("valve model");  // throws for an element inverted by the extrusion
+  m.min_quality = 1.0;
+  for (Eigen::Index e = 0; e < lin.T.rows(); ++e) {
+    double longest = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      for (int j = i + 1; j < 4; ++j)
+        longest = std::max(longest, (lin.V.row(lin.T(e, i)) - lin.V.row(lin.T(e, j))).norm());
+    }
+    const double q =
+        6.0 * std::sqrt(2.0) * lin.volume(static_cast<int>(e)) / (longest * longest * longest);
+    if (q < m.min_quality) {
+      m.min_quality = q;
+      m.worst_element = static_cast<int>(e);
+    }
+  }
   m.mesh = make_solid(lin, opt.order);
 
   // Prescribed: the annulus row on every layer (and the mid-edge nodes between those).

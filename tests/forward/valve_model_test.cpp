@@ -60,6 +60,11 @@ TEST_P(ValveModelTest, MeshTagsFibresThickness) {
   // Annulus: v = 0 on every layer.
   EXPECT_GE(m.annulus_nodes.size(), static_cast<size_t>(o.ures * (layers + 1)));
   EXPECT_EQ(m.ventricular_faces.size(), static_cast<size_t>(2 * o.ures * (o.vres - 1)));
+  // The quality report is consistent: in (0, 1] and attained by a real element.
+  EXPECT_GT(m.min_quality, 0.0);
+  EXPECT_LE(m.min_quality, 1.0);
+  EXPECT_GE(m.worst_element, 0);
+  EXPECT_LT(m.worst_element, m.mesh.num_elements());
   // The leaflet material builds on this mesh (no inverted element).
   EXPECT_NO_THROW(ElasticBody(m.mesh, [](int tag) {
     return tag == 1 ? TransverselyIsotropic::anterior_leaflet()

@@ -60,6 +60,10 @@ struct ValveModel {
   std::vector<Eigen::Vector3i> ventricular_faces;
   /// Papillary tips at end-diastole, mm.
   Eigen::Vector3d papillary_ed[2];
+  /// Worst element shape: 6 sqrt(2) V / (longest edge)^3 (1 for a regular tetrahedron), and
+  /// where it is. Slivers near the commissures (see docs/forward-status.md) show up here.
+  double min_quality = 0.0;
+  int worst_element = -1;
 
   int node(int u, int v, int layer) const;
 };
