@@ -39,4 +39,10 @@ void write_atomically(const std::filesystem::path& path,
   }
 }
 
+void create_output_directory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw Error(dir.string() + ": cannot create directory: " + ec.message());
+}
+
 }  // namespace mvtwin

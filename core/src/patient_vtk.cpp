@@ -4,6 +4,7 @@
 
 #include <cstdio>
 
+#include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/vtk_writer.h"
 
@@ -11,9 +12,7 @@ namespace mvtwin {
 
 std::vector<std::filesystem::path> export_patient_vtk(const Patient& patient,
                                                       const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir.string() + ": cannot create directory: " + ec.message());
+  create_output_directory(dir);
   const ValveSequence& seq = patient.sequence;
   std::vector<std::filesystem::path> written;
   std::vector<std::pair<double, std::string>> surf_steps, ann_steps, lm_steps;

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <set>
 
+#include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/vtk_writer.h"
 
@@ -10,9 +11,7 @@ namespace mvtwin::forward {
 
 std::vector<std::filesystem::path> export_model_vtk(const ValveModel& m,
                                                     const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir.string() + ": cannot create directory: " + ec.message());
+  create_output_directory(dir);
   std::vector<std::filesystem::path> out;
 
   const std::set<int> fixed(m.annulus_nodes.begin(), m.annulus_nodes.end());
@@ -50,9 +49,7 @@ std::vector<std::filesystem::path> export_model_vtk(const ValveModel& m,
 
 std::vector<std::filesystem::path> export_closure_vtk(const ClosureResult& r,
                                                       const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw Error(dir.string() + ": cannot create directory: " + ec.message());
+  create_output_directory(dir);
   std::vector<std::filesystem::path> out;
   std::vector<std::pair<double, std::string>> steps;
   for (size_t i = 0; i < r.samples.size(); ++i) {

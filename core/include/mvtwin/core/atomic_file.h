@@ -11,4 +11,7 @@ namespace mvtwin {
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 
+/// Creates an output directory (and its parents) if needed; throws mvtwin::Error naming it.
+void create_output_directory(const std::filesystem::path& dir);
+
 }  // namespace mvtwin
