@@ -188,18 +188,18 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   };
   std::vector<Prescribed> prescribed;
   std::vector<char> fixed(ndof, 0);
+  std::map<int, std::pair<int, int>> mid_of_annulus;  // prescribed mid-edge node -> its edge
+  for (const auto& [edge, mid] : mesh.mid_edge) {
+    if (corner_u.count(edge.first) && corner_u.count(edge.second)) mid_of_annulus[mid] = edge;
+  }
   for (int node : model.annulus_nodes) {
-    int ua = -1, ub = -1;
+    int ua, ub;
     if (corner_u.count(node)) {
-      ua = ub = corner_u[node];
+      ua = ub = corner_u.at(node);
     } else {
-      for (const auto& [edge, mid] : mesh.mid_edge) {
-        if (mid == node) {
-          ua = corner_u.at(edge.first);
-          ub = corner_u.at(edge.second);
-          break;
-        }
-      }
+      const auto& edge = mid_of_annulus.at(node);
+      ua = corner_u.at(edge.first);
+      ub = corner_u.at(edge.second);
     }
     prescribed.push_back({node, ua, ub});
     fixed[3 * node] = fixed[3 * node + 1] = fixed[3 * node + 2] = 1;

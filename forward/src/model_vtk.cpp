@@ -16,13 +16,15 @@ std::vector<std::filesystem::path> export_model_vtk(const ValveModel& m,
 
   const std::set<int> fixed(m.annulus_nodes.begin(), m.annulus_nodes.end());
   VtkArray prescribed{"prescribed", 1, {}, true};
-  for (Eigen::Index i = 0; i < m.linear.V.rows(); ++i) prescribed.values.push_back(fixed.count(static_cast<int>(i)) ? 1 : 0);
+  for (Eigen::Index i = 0; i < m.linear.V.rows(); ++i)
+    prescribed.values.push_back(fixed.count(static_cast<int>(i)) ? 1 : 0);
   write_vtu(dir / "leaflets.vtu", m.linear, {prescribed});
   out.push_back(dir / "leaflets.vtu");
 
   VtkPolyData ch;
   ch.points.resize(2 * static_cast<Eigen::Index>(m.chordae.size()), 3);
-  VtkArray group{"group", 1, {}, true}, marginal{"marginal", 1, {}, true}, length{"ed_length_mm", 1, {}, false};
+  VtkArray group{"group", 1, {}, true}, marginal{"marginal", 1, {}, true},
+      length{"ed_length_mm", 1, {}, false};
   for (size_t k = 0; k < m.chordae.size(); ++k) {
     const ModelChorda& c = m.chordae[k];
     Eigen::Vector3d ins = Eigen::Vector3d::Zero();
@@ -41,7 +43,8 @@ std::vector<std::filesystem::path> export_model_vtk(const ValveModel& m,
   TriangleMesh ps;
   ps.V = m.linear.V;
   ps.F.resize(static_cast<Eigen::Index>(m.ventricular_faces.size()), 3);
-  for (size_t f = 0; f < m.ventricular_faces.size(); ++f) ps.F.row(static_cast<Eigen::Index>(f)) = m.ventricular_faces[f].transpose();
+  for (size_t f = 0; f < m.ventricular_faces.size(); ++f)
+    ps.F.row(static_cast<Eigen::Index>(f)) = m.ventricular_faces[f].transpose();
   write_vtp(dir / "pressure_surface.vtp", ps);
   out.push_back(dir / "pressure_surface.vtp");
   return out;

@@ -53,7 +53,7 @@ bool ModelOptions::is_valid(std::string* error) const {
 int ValveModel::node(int u, int v, int layer) const {
   const int U = options.ures, V = options.vres;
   u = ((u % U) + U) % U;
-  return grid_node[(static_cast<size_t>(layer) * V + v) * U + u];
+  return (layer * V + v) * U + u;
 }
 
 ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) {
@@ -98,12 +98,10 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   // Corner nodes: (layer, v, u).
   TetMesh& lin = m.linear;
   lin.V.resize(static_cast<Eigen::Index>(L + 1) * V * U, 3);
-  m.grid_node.resize(lin.V.rows());
   for (int l = 0; l <= L; ++l) {
     for (int v = 0; v < V; ++v) {
       for (int u = 0; u < U; ++u) {
         const int id = (l * V + v) * U + u;
-        m.grid_node[id] = id;
         lin.V.row(id) = grid.at(u, v).transpose() +
                         (static_cast<double>(l) / L) * thickness(u) * normal.row(v * U + u);
       }

@@ -163,14 +163,12 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
     s["papillary_depth"].add(-0.5 * (plane.signed_distance(pal) + plane.signed_distance(ppm)));
     s["papillary_separation"].add((pal - ppm).norm());
     // Marginal chordae (SPEC Sec. 3: 28 on the free edge) to the tip on their side.
-    const int U = g.ures();
     for (int k = 0; k < 28; ++k) {
       const double su = static_cast<double>(k) / 28.0;
       const Eigen::Vector3d ins = g.sample(su, 1.0);
       const bool anterolateral = su < 0.25 || su >= 0.75;
       s["chordae_length_ed"].add((ins - (anterolateral ? pal : ppm)).norm());
     }
-    (void)U;
     for (const auto& [name, v] : p.truth->anatomy) {
       if (name.rfind("restlength_taut_", 0) == 0) s[name].add(v);
     }

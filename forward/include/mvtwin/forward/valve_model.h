@@ -49,8 +49,6 @@ struct ValveModel {
   ModelOptions options;
   SolidMesh mesh;  ///< leaflets at end-diastole
   TetMesh linear;  ///< the corner (linear) mesh, for export
-  /// Corner node of grid point (u, v) on layer l (0 = atrial surface, layers = ventricular).
-  std::vector<int> grid_node;  // index [(l * vres + v) * ures + u]
   std::vector<ModelChorda> chordae;
   /// Nodes whose motion is prescribed: the annulus (v = 0) on every layer, and for quadratic
   /// meshes the mid-edge nodes between them.
@@ -65,6 +63,8 @@ struct ValveModel {
   double min_quality = 0.0;
   int worst_element = -1;
 
+  /// Corner node of grid point (u, v) on layer l (0 = atrial surface, layers = ventricular):
+  /// (l * vres + v) * ures + u, u wrapping around.
   int node(int u, int v, int layer) const;
 };
 
