@@ -347,10 +347,19 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--dt", opts->dt, "time step, s")->default_val(0.01);
     cmd->add_option("--newton", *newton, "Newton iterations per step (1 = one linearization)")
         ->default_val(1);
+    auto solver = std::make_shared<std::string>("cholmod-supernodal");
+    cmd->add_option("--solver", *solver,
+                    "cholmod-supernodal | cholmod-simplicial | eigen-ldlt | reused-factor-pcg")
+        ->default_val("cholmod-supernodal");
+    auto no_contact = std::make_shared<bool>(false);
+    cmd->add_flag("--no-contact", *no_contact, "switch self-contact off");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
         const Patient p = read_patient(*file, false);
         forward::ClosureOptions o = *opts;
+        if (!forward::parse_linear_solver(*solver, &o.solver))
+          throw Error("unknown solver '" + *solver + "'");
+        o.contact = !*no_contact;
         o.newton_iterations = *newton;
         o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
         ValveParameters par;

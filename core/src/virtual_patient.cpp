@@ -37,6 +37,7 @@ struct Draw {
   double apical_excursion = 0;
   // leaflets
   double al_length = 0, pl_length = 0, commissure_length = 0;
+  double al_opening_ed = 0, pl_opening_ed = 0;
   double al_opening = 0, pl_opening = 0, bulge = 0, scallop_depth = 0;
   // papillary tips
   double papillary_depth = 0, papillary_separation = 0, papillary_posterior = 0;
@@ -76,8 +77,13 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
   d.al_length = rng.truncated_normal(23.5, 1.3, 20.5, 26.5);
   d.pl_length = rng.truncated_normal(15.0, 0.7, 13.5, 16.8);
   d.commissure_length = rng.truncated_normal(10.0, 1.0, 8.0, 12.0);
-  d.al_opening = rng.truncated_normal(79.0, 3.0, 70.0, 86.0) * kDeg;
-  d.pl_opening = rng.truncated_normal(73.0, 3.0, 64.0, 80.0) * kDeg;
+  // Opening angles below the annulus plane: widest in early diastole (mitral valve area 4-6 cm^2),
+  // partly closed again at end-diastole after the atrial kick (pre-closure), where the closure
+  // simulation starts.
+  d.al_opening = rng.truncated_normal(75.0, 3.0, 66.0, 84.0) * kDeg;
+  d.pl_opening = rng.truncated_normal(69.0, 3.0, 60.0, 78.0) * kDeg;
+  d.al_opening_ed = rng.truncated_normal(58.0, 3.0, 50.0, 66.0) * kDeg;
+  d.pl_opening_ed = rng.truncated_normal(50.0, 3.0, 42.0, 58.0) * kDeg;
   d.bulge = rng.uniform(0.06, 0.12);
   d.scallop_depth = rng.uniform(0.0, 0.12);
   // Papillary tips (26-27 mm below the annulus plane, ~30 mm apart).
@@ -201,8 +207,9 @@ Curve sample_annulus(const AnnulusShape& shape, int ures, std::vector<double>* t
   return out;
 }
 
-/// Open leaflet surface hanging from the annulus into the ventricle.
-LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double opening_scale) {
+/// Open leaflet surface hanging from the annulus into the ventricle; `openness` 1 in early
+/// diastole (widest), 0 at end-diastole.
+LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double openness) {
   const int ures = static_cast<int>(annulus.rows());
   LeafletGrid::Points P(static_cast<Eigen::Index>(ures) * vres, 3);
   const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
@@ -210,16 +217,18 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     const bool anterior = u < ures / 2;
     const double s = anterior ? static_cast<double>(u) / (ures / 2)
                               : static_cast<double>(u - ures / 2) / (ures / 2);
-    double g = std::pow(std::sin(pi * s), anterior ? 0.3 : 0.25);
+    double g = std::pow(std::sin(pi * s), anterior ? 1.0 : 1.0);
     if (!anterior) {  // clefts between the posterior scallops P1/P2/P3
       g *= 1.0 - d.scallop_depth * (std::exp(-std::pow((s - 1.0 / 3) / 0.04, 2)) +
                                     std::exp(-std::pow((s - 2.0 / 3) / 0.04, 2)));
     }
     const double leaflet_length = anterior ? d.al_length : d.pl_length;
     const double L = d.commissure_length + (leaflet_length - d.commissure_length) * g;
-    const double phi_leaf = anterior ? d.al_opening : d.pl_opening;
-    const double phi_c = 0.5 * (d.al_opening + d.pl_opening);
-    const double phi = std::min((phi_c + (phi_leaf - phi_c) * g) * opening_scale, 88.0 * kDeg);
+    const double phi_leaf =
+        anterior ? d.al_opening_ed + (d.al_opening - d.al_opening_ed) * openness
+                 : d.pl_opening_ed + (d.pl_opening - d.pl_opening_ed) * openness;
+    const double phi_c = 84.0 * kDeg;  // commissures hang nearly vertically
+    const double phi = std::min(phi_c + (phi_leaf - phi_c) * g, 88.0 * kDeg);
 
     const Eigen::Vector3d A = annulus.row(u).transpose();
     const Eigen::Vector3d tangent =
@@ -232,7 +241,7 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     for (int v = 0; v < vres; ++v) {
       const double t = static_cast<double>(v) / (vres - 1);
       P.row(static_cast<Eigen::Index>(v) * ures + u) =
-          (A + L * (t * dir + d.bulge * std::sin(pi * t) * bulge)).transpose();
+          (A + L * (t * dir + d.bulge * g * std::sin(pi * t) * bulge)).transpose();
     }
   }
   return LeafletGrid(ures, vres, std::move(P));
@@ -414,9 +423,9 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       fr.landmark_observed[index(l)] = false;
     }
     if (f <= ed) {
-      // Open frames: widest in early diastole, a little less open at end-diastole.
-      const double opening_scale = 1.0 + 0.08 * (1.0 - t / std::max(t_ed, 1e-9));
-      LeafletGrid g = open_leaflets(d, annulus_v, vres, opening_scale);
+      // Open frames: widest in early diastole, partly closed at end-diastole.
+      const double openness = 1.0 - t / std::max(t_ed, 1e-9);
+      LeafletGrid g = open_leaflets(d, annulus_v, vres, openness);
       if (f == ed) ed_surface_valve = g;
       for (Eigen::Index i = 0; i < g.points().rows(); ++i) {
         g.points().row(i) = to_image(g.points().row(i).transpose()).transpose();
@@ -459,6 +468,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       {"commissure_leaflet_length_mm", d.commissure_length},
       {"al_opening_deg", d.al_opening / kDeg},
       {"pl_opening_deg", d.pl_opening / kDeg},
+      {"al_opening_ed_deg", d.al_opening_ed / kDeg},
+      {"pl_opening_ed_deg", d.pl_opening_ed / kDeg},
       {"leaflet_bulge", d.bulge},
       {"scallop_depth", d.scallop_depth},
       {"papillary_depth_mm", d.papillary_depth},

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include <Eigen/CholmodSupport>
@@ -11,7 +12,9 @@
 
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
+#include "mvtwin/forward/self_contact.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -109,9 +112,17 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(density > 0)) return bad("density must be positive");
   if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0))
     return bad("Rayleigh coefficients must be >= 0");
+  if (!(pcg_tolerance > 0 && pcg_tolerance < 1) || pcg_max_iterations < 1)
+    return bad("pcg_tolerance must be in (0, 1) and pcg_max_iterations >= 1");
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
+  if (!(contact_alarm_mm > contact_distance_mm && contact_distance_mm >= 0 &&
+        contact_alarm_mm <= 5))
+    return bad("contact distances must satisfy 0 <= contact < alarm <= 5 mm");
+  if (!(contact_friction >= 0 && contact_friction <= 5)) return bad("friction must be in [0, 5]");
+  if (!(contact_stiffness_factor >= 1 && contact_stiffness_factor <= 1000))
+    return bad("contact_stiffness_factor must be in [1, 1000]");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
   for (int k : ruptured_marginal_chordae) {
@@ -126,7 +137,10 @@ std::string ClosureSummary::brief_report() const {
      << "; " << steps << " steps (" << halvings << " halvings, " << newton_iterations
      << " Newton iterations), " << dofs << " dofs, " << elements << " elements; " << wall_s
      << " s (assembly " << assembly_s << ", solve " << solve_s << ", contact " << contact_s
-     << ", other " << other_s << ")";
+     << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
+     << analyses << " analyses, " << pcg_iterations << " PCG iterations; contact: " << contacts
+     << " pairs at the end (max " << max_contacts << "), " << contact_searches << " searches, "
+     << contact_skipped << " skipped";
   return os.str();
 }
 
@@ -181,7 +195,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   // Prescribed nodes follow the displacement of their annulus grid points.
   std::map<int, int> corner_u;  // annulus corner node -> u
   for (int l = 0; l <= L; ++l) {
-    for (int u = 0; u < U; ++u) corner_u[model.node(u, 0, l)] = u;
+    for (int u = 0; u < U; ++u) corner_u[model.node(model.annulus_column[u], l)] = u;
   }
   struct Prescribed {
     int node, ua, ub;
@@ -247,18 +261,14 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   sum.dofs = static_cast<int>(free_dofs.size());
   sum.elements = mesh.num_elements();
 
+  const AtrialSampler sampler = make_atrial_sampler(model, U, V);
   auto record = [&](double tau, const Eigen::VectorXd& x) {
     ClosureSample s;
     s.time_s = tau;
     s.observed_time_s = motion.observed_time(tau);
-    LeafletGrid::Points P(U * V, 3);
-    for (int v = 0; v < V; ++v) {
-      for (int u = 0; u < U; ++u)
-        P.row(v * U + u) = x.segment<3>(3 * model.node(u, v, 0)).transpose();
-    }
-    s.la_surface = LeafletGrid(U, V, P);
+    s.la_surface = sample_atrial(sampler, x);
     ValveFrame fr;
-    fr.annulus = P.topRows(U);
+    fr.annulus = s.la_surface.points().topRows(U);
     for (int l = 0; l < kNumLandmarks; ++l) {
       const Landmark lm = static_cast<Landmark>(l);
       fr.landmark_observed[l] =
@@ -273,10 +283,21 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     result.samples.push_back(std::move(s));
   };
 
+  std::optional<SelfContact> contact;
+  if (opt.contact) {
+    SelfContact::Options co;
+    co.alarm_mm = opt.contact_alarm_mm;
+    co.contact_mm = opt.contact_distance_mm;
+    co.friction = opt.contact_friction;
+    co.stiffness_per_area = opt.contact_stiffness_factor *
+                            std::max(params.peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
+                            (opt.contact_alarm_mm - opt.contact_distance_mm);
+    contact.emplace(SelfContact::valve_surface(model), co);
+  }
+  std::vector<Eigen::Triplet<double>> trip_c;
+
   Eigen::VectorXd x = X, v = Eigen::VectorXd::Zero(ndof);
-  // CHOLMOD supernodal Cholesky; the symbolic analysis is done once (the pattern is fixed).
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> solver;
-  bool analyzed = false;
+  StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations});
   std::vector<Eigen::Triplet<double>> trip_el, trip_all;
 
   // One implicit Euler step from (x, v) at tau to tau + h; false with a reason on failure.
@@ -294,6 +315,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
     for (int it = 0; it < opt.newton_iterations; ++it) {
       auto ta = Clock::now();
+      const double contact_before = sum.contact_s;
       const Eigen::VectorXd x1 = x0 + h * v1;
       Eigen::VectorXd g = Eigen::VectorXd::Zero(ndof);
       trip_el.clear();
@@ -333,6 +355,19 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
           }
         }
       }
+      if (contact) {
+        const auto tc = Clock::now();
+        const int found = contact->detect(x1);
+        sum.contacts = found;
+        sum.max_contacts = std::max(sum.max_contacts, found);
+        trip_c.clear();
+        contact->add(v1, &f, &trip_c, h * h, h);
+        for (const auto& t : trip_c) {
+          const int r = to_free[t.row()], c = to_free[t.col()];
+          if (r >= 0 && c >= 0) trip_all.emplace_back(r, c, t.value());
+        }
+        sum.contact_s += seconds_since(tc);
+      }
       for (const PressureFace& pf : pfaces) {
         const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b),
                               c = x1.segment<3>(3 * pf.c);
@@ -353,23 +388,12 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(free_dofs.size()),
                                     static_cast<Eigen::Index>(free_dofs.size()));
       A.setFromTriplets(trip_all.begin(), trip_all.end());
-      sum.assembly_s += seconds_since(ta);
+      sum.assembly_s += seconds_since(ta) - (sum.contact_s - contact_before);
       auto ts = Clock::now();
-      if (!analyzed) {
-        solver.analyzePattern(A);
-        analyzed = true;
-      }
-      solver.factorize(A);
-      if (solver.info() != Eigen::Success) {
-        *why = "linear solver failed (matrix not positive definite)";
-        return false;
-      }
-      const Eigen::VectorXd dv = solver.solve(-r);
+      Eigen::VectorXd dv;
+      const bool solved = linear.solve(A, -r, &dv, why);
       sum.solve_s += seconds_since(ts);
-      if (!dv.allFinite()) {
-        *why = "non-finite velocity update";
-        return false;
-      }
+      if (!solved) return false;
       for (size_t i = 0; i < free_dofs.size(); ++i)
         v1[free_dofs[i]] += dv[static_cast<Eigen::Index>(i)];
       ++sum.newton_iterations;
@@ -379,6 +403,18 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     *x_io = x0 + h * v1;
     *v_io = v1;
     return x_io->allFinite();
+  };
+
+  auto finish = [&] {
+    sum.analyses = linear.stats().analyses;
+    sum.factorizations = linear.stats().factorizations;
+    sum.pcg_iterations = linear.stats().pcg_iterations;
+    if (contact) {
+      sum.contact_searches = contact->searches();
+      sum.contact_skipped = contact->skipped();
+    }
+    sum.wall_s = seconds_since(t_start);
+    sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
 
   record(0.0, x);
@@ -396,8 +432,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
                      std::to_string(halvings) + " step halvings)";
         result.positions = x;
         record(tau, x);
-        sum.wall_s = seconds_since(t_start);
-        sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
+        finish();
         return result;
       }
       ++halvings;
@@ -417,8 +452,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   record(tau, x);
   result.positions = x;
   sum.status = ClosureStatus::kConverged;
-  sum.wall_s = seconds_since(t_start);
-  sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
+  finish();
   return result;
 }
 

@@ -2,11 +2,14 @@
 
 #include <cmath>
 #include <numbers>
+#include <algorithm>
+#include <limits>
 #include <set>
 
 #include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/forward/delaunay_2d.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -50,11 +53,207 @@ bool ModelOptions::is_valid(std::string* error) const {
   return true;
 }
 
-int ValveModel::node(int u, int v, int layer) const {
-  const int U = options.ures, V = options.vres;
-  u = ((u % U) + U) % U;
-  return (layer * V + v) * U + u;
+namespace {
+
+/// The leaflet surface unrolled: xi = annulus arc length (mm, periodic with the perimeter),
+/// depth = arc length along the leaflet from the annulus (mm), up to the free edge L(xi).
+class Unrolled {
+ public:
+  explicit Unrolled(const LeafletGrid& g, int ures) : grid_(g) {
+    const int n = 32 * ures;
+    s_.resize(n + 1);
+    xi_.resize(n + 1);
+    length_.resize(n + 1);
+    xi_[0] = 0.0;
+    Eigen::Vector3d prev = g.sample(0.0, 0.0);
+    for (int k = 0; k <= n; ++k) {
+      s_[k] = static_cast<double>(k) / n;
+      if (k > 0) {
+        const Eigen::Vector3d p = g.sample(s_[k] < 1.0 ? s_[k] : 0.0, 0.0);
+        xi_[k] = xi_[k - 1] + (p - prev).norm();
+        prev = p;
+      }
+      length_[k] = k < n ? g.radial_length_at(s_[k]) : length_[0];
+    }
+    perimeter_ = xi_[n];
+  }
+  double perimeter() const { return perimeter_; }
+  /// Around-coordinate s in [0,1) -> xi.
+  double xi(double s) const { return interp(s_, xi_, wrap(s)); }
+  /// xi -> s in [0,1).
+  double s_of(double xi) const {
+    xi = xi - perimeter_ * std::floor(xi / perimeter_);
+    return interp(xi_, s_, xi);
+  }
+  /// Free-edge depth at xi.
+  double free_edge(double xi) const { return interp(s_, length_, s_of(xi)); }
+  /// Grid coordinates (s, t) of (xi, depth).
+  Eigen::Vector2d st(double xi, double depth) const {
+    const double s = s_of(xi);
+    return {s, std::clamp(depth / interp(s_, length_, s), 0.0, 1.0)};
+  }
+  Eigen::Vector3d position(const Eigen::Vector2d& st) const { return grid_.sample(st[0], st[1]); }
+
+ private:
+  static double wrap(double s) { return s - std::floor(s); }
+  static double interp(const std::vector<double>& x, const std::vector<double>& y, double q) {
+    const auto it = std::upper_bound(x.begin(), x.end(), q);
+    if (it == x.begin()) return y.front();
+    if (it == x.end()) return y.back();
+    const size_t k = static_cast<size_t>(it - x.begin());
+    const double w = (q - x[k - 1]) / (x[k] - x[k - 1]);
+    return y[k - 1] + w * (y[k] - y[k - 1]);
+  }
+  const LeafletGrid& grid_;
+  std::vector<double> s_, xi_, length_;
+  double perimeter_ = 0.0;
+};
+
+/// Deterministic sub-resolution jitter that breaks the co-circularity of lattice points.
+double jitter(int i, int j) {
+  const unsigned h = static_cast<unsigned>(i) * 73856093u ^ static_cast<unsigned>(j) * 19349663u;
+  return (static_cast<double>(h % 1000u) / 1000.0 - 0.5);
 }
+
+struct SurfaceMesh {
+  std::vector<Eigen::Vector2d> plane;  // (xi, depth) in mm
+  std::vector<Eigen::Vector2d> st;
+  std::vector<std::array<int, 3>> triangles;  // counter-clockwise in (xi, depth)
+  std::vector<int> annulus_column;
+  std::vector<char> free_edge;
+};
+
+/// Triangulates the unrolled leaflet: the annulus row at the grid's columns, a lattice of
+/// spacing (perimeter/ures, depth step) inside, points every depth step along the free edge, and
+/// a Delaunay triangulation (in coordinates scaled so that the lattice is square) clipped to the
+/// leaflet.
+SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
+  const double P = un.perimeter(), hx = P / U;
+  double mean_length = 0.0;
+  for (int u = 0; u < U; ++u) mean_length += un.free_edge(un.xi(static_cast<double>(u) / U)) / U;
+  // Depth step from vres, but elements no flatter than kMaxAnisotropy : 1 in the unrolled
+  // plane: Delaunay triangles are shaped in the scaled plane, and any of them not aligned with
+  // the axes becomes a sliver in 3D when the scale is large (measured: worst tetrahedron quality
+  // 4e-4 at 6.6 : 1, ures = vres = 30).
+  constexpr double kMaxAnisotropy = 2.5;
+  const double hd = std::max(mean_length / (V - 1), hx / kMaxAnisotropy);
+  const double scale = hx / hd;  // depth -> lattice units
+  SurfaceMesh sm;
+  auto add = [&](double xi, double depth, bool edge) {
+    sm.plane.emplace_back(xi, depth);
+    sm.free_edge.push_back(edge);
+    return static_cast<int>(sm.plane.size()) - 1;
+  };
+  for (int u = 0; u < U; ++u) sm.annulus_column.push_back(add(un.xi(double(u) / U), 0.0, false));
+  // Free edge: a point every lattice unit of the scaled curve.
+  std::vector<Eigen::Vector2d> edge;
+  {
+    const int fine = 64 * U;
+    Eigen::Vector2d last(0.0, un.free_edge(0.0) * scale);
+    edge.push_back(last);
+    for (int k = 1; k < fine; ++k) {
+      const double xi = P * k / fine;
+      const Eigen::Vector2d q(xi, un.free_edge(xi) * scale);
+      const double to_end = Eigen::Vector2d(P - xi, (un.free_edge(0.0) * scale - q.y())).norm();
+      if ((q - last).norm() >= hx && to_end >= 0.5 * hx) {
+        edge.push_back(q);
+        last = q;
+      }
+    }
+  }
+  for (const auto& q : edge) add(q.x(), q.y() / scale, true);
+  const int num_edge = static_cast<int>(edge.size());
+  // Interior lattice, away from the free edge and the annulus.
+  for (int u = 0; u < U; ++u) {
+    for (int j = 1;; ++j) {
+      const double xi = un.xi((u + 0.5 * (j % 2)) / U);
+      const double d = j * hd;
+      if (d > un.free_edge(xi) - 0.5 * hd) {
+        if (d > 1.5 * mean_length) break;
+        continue;
+      }
+      const Eigen::Vector2d q(xi, d * scale);
+      bool near = false;
+      for (const auto& e : edge) {
+        Eigen::Vector2d diff = q - e;
+        diff.x() -= P * std::round(diff.x() / P);
+        if (diff.norm() < 0.6 * hx) {
+          near = true;
+          break;
+        }
+      }
+      if (!near) add(xi + 1e-4 * hx * jitter(u, j), d + 1e-4 * hd * jitter(j, u), false);
+    }
+  }
+  // Periodic Delaunay (copies of the points near the seam on the other side) clipped to the
+  // leaflet, then Laplacian smoothing of the interior points in the scaled plane and a second
+  // triangulation of the smoothed points.
+  const int n = static_cast<int>(sm.plane.size());
+  auto triangulate = [&] {
+    std::vector<Eigen::Vector2d> pts;
+    std::vector<int> origin;
+    for (int i = 0; i < n; ++i) {
+      pts.emplace_back(sm.plane[i].x(), sm.plane[i].y() * scale);
+      origin.push_back(i);
+    }
+    for (int i = 0; i < n; ++i) {
+      if (sm.plane[i].x() < 4 * hx) {
+        pts.emplace_back(sm.plane[i].x() + P, sm.plane[i].y() * scale);
+        origin.push_back(i);
+      }
+      if (sm.plane[i].x() > P - 4 * hx) {
+        pts.emplace_back(sm.plane[i].x() - P, sm.plane[i].y() * scale);
+        origin.push_back(i);
+      }
+    }
+    sm.triangles.clear();
+    for (const auto& t : delaunay_2d(pts)) {
+      const Eigen::Vector2d c = (pts[t[0]] + pts[t[1]] + pts[t[2]]) / 3.0;
+      if (c.x() < 0.0 || c.x() >= P) continue;
+      // Inside the leaflet: the centroid and the edge midpoints below the free edge.
+      // An edge between consecutive free-edge points is the boundary itself (its midpoint may
+      // lie above a concave stretch of the free edge).
+      bool inside = c.y() < un.free_edge(c.x()) * scale;
+      for (int k = 0; k < 3 && inside; ++k) {
+        const int a = origin[t[k]], b = origin[t[(k + 1) % 3]];
+        const int gap = std::abs(a - b);
+        if (sm.free_edge[a] && sm.free_edge[b] && (gap == 1 || gap == num_edge - 1)) continue;
+        const Eigen::Vector2d m = 0.5 * (pts[t[k]] + pts[t[(k + 1) % 3]]);
+        inside = m.y() < un.free_edge(m.x()) * scale + 1e-9;
+      }
+      if (inside) sm.triangles.push_back({origin[t[0]], origin[t[1]], origin[t[2]]});
+    }
+  };
+  triangulate();
+  std::vector<char> movable(n, 0);
+  for (int i = U; i < n; ++i) movable[i] = !sm.free_edge[i];
+  for (int pass = 0; pass < 10; ++pass) {
+    std::vector<Eigen::Vector2d> sum(n, Eigen::Vector2d::Zero());
+    std::vector<int> count(n, 0);
+    for (const auto& t : sm.triangles) {
+      for (int k = 0; k < 3; ++k) {
+        const int a = t[k], b = t[(k + 1) % 3];
+        Eigen::Vector2d d = sm.plane[b] - sm.plane[a];
+        d.x() -= P * std::round(d.x() / P);
+        sum[a] += d;
+        sum[b] -= d;
+        ++count[a];
+        ++count[b];
+      }
+    }
+    for (int i = 0; i < n; ++i) {
+      if (!movable[i] || count[i] == 0) continue;
+      Eigen::Vector2d q = sm.plane[i] + 0.5 * sum[i] / count[i];
+      q.x() -= P * std::floor(q.x() / P);
+      if (q.y() > 0.2 * hd && q.y() < un.free_edge(q.x()) - 0.2 * hd) sm.plane[i] = q;
+    }
+  }
+  triangulate();
+  for (const auto& q : sm.plane) sm.st.push_back(un.st(q.x(), q.y()));
+  return sm;
+}
+
+}  // namespace
 
 ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) {
   std::string err;
@@ -71,76 +270,95 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   m.options = opt;
   m.papillary_ed[0] = ed.landmark(Landmark::kAnterolateralPapillaryTip);
   m.papillary_ed[1] = ed.landmark(Landmark::kPosteromedialPapillaryTip);
-  const int U = opt.ures, V = opt.vres, L = opt.layers;
-  const LeafletGrid grid = ed.la_surface->resampled(U, V);
-
-  // Vertex normals of the atrial surface, towards the ventricle (the grid's triangle winding).
-  const TriangleMesh tri = grid.triangulate();
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> normal =
-      Eigen::MatrixXd::Zero(U * V, 3);
-  for (Eigen::Index f = 0; f < tri.F.rows(); ++f) {
-    const Eigen::Vector3d a = tri.V.row(tri.F(f, 0)), b = tri.V.row(tri.F(f, 1)),
-                          c = tri.V.row(tri.F(f, 2));
-    const Eigen::Vector3d n = (b - a).cross(c - a);  // area-weighted
-    for (int k = 0; k < 3; ++k) normal.row(tri.F(f, k)) += n.transpose();
+  const int U = opt.ures, L = opt.layers;
+  const LeafletGrid& grid = *ed.la_surface;
+  const Unrolled un(grid, U);
+  const SurfaceMesh sm = mesh_surface(un, U, opt.vres);
+  const int N = static_cast<int>(sm.plane.size());
+  m.surface_nodes = N;
+  m.surface_st.resize(N, 2);
+  m.surface_plane.resize(N, 2);
+  for (int i = 0; i < N; ++i) {
+    m.surface_st.row(i) = sm.st[i].transpose();
+    m.surface_plane.row(i) = sm.plane[i].transpose();
   }
-  for (int i = 0; i < U * V; ++i) {
+  m.perimeter = un.perimeter();
+  m.annulus_column = sm.annulus_column;
+  m.surface_triangles.resize(static_cast<Eigen::Index>(sm.triangles.size()), 3);
+  for (size_t f = 0; f < sm.triangles.size(); ++f) {
+    for (int k = 0; k < 3; ++k) m.surface_triangles(static_cast<Eigen::Index>(f), k) = sm.triangles[f][k];
+  }
+
+  // Atrial surface points and vertex normals towards the ventricle: counter-clockwise in
+  // (xi, depth) is the grid's (u, v) winding, whose normals face the ventricle.
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X(N, 3), normal =
+      Eigen::MatrixXd::Zero(N, 3);
+  for (int i = 0; i < N; ++i) X.row(i) = un.position(sm.st[i]).transpose();
+  for (const auto& t : sm.triangles) {
+    const Eigen::Vector3d a = X.row(t[0]), b = X.row(t[1]), c = X.row(t[2]);
+    const Eigen::Vector3d nrm = (b - a).cross(c - a);
+    for (int k = 0; k < 3; ++k) normal.row(t[k]) += nrm.transpose();
+  }
+  for (int i = 0; i < N; ++i) {
     const double len = normal.row(i).norm();
-    if (!(len > 0))
-      throw Error("valve model: degenerate leaflet surface at grid point " + std::to_string(i));
+    if (!(len > 0)) {
+      throw Error("valve model: degenerate leaflet surface at grid coordinates (" +
+                  std::to_string(sm.st[i][0]) + ", " + std::to_string(sm.st[i][1]) + ")");
+    }
     normal.row(i) /= len;
   }
-  auto thickness = [&](int u) {
-    // Blend the two thicknesses over the commissure columns.
-    return grid.column_tag(u) == LeafletTag::kAnterior ? opt.al_thickness_mm : opt.pl_thickness_mm;
+  auto anterior_at = [](double s) { return s < 0.5; };
+  auto thickness = [&](double s) {
+    return anterior_at(s) ? opt.al_thickness_mm : opt.pl_thickness_mm;
   };
 
-  // Corner nodes: (layer, v, u).
   TetMesh& lin = m.linear;
-  lin.V.resize(static_cast<Eigen::Index>(L + 1) * V * U, 3);
+  lin.V.resize(static_cast<Eigen::Index>(L + 1) * N, 3);
   for (int l = 0; l <= L; ++l) {
-    for (int v = 0; v < V; ++v) {
-      for (int u = 0; u < U; ++u) {
-        const int id = (l * V + v) * U + u;
-        lin.V.row(id) = grid.at(u, v).transpose() +
-                        (static_cast<double>(l) / L) * thickness(u) * normal.row(v * U + u);
-      }
+    for (int i = 0; i < N; ++i) {
+      lin.V.row(m.node(i, l)) =
+          X.row(i) + (static_cast<double>(l) / L) * thickness(sm.st[i][0]) * normal.row(i);
     }
   }
-  // Hexahedral cells (u, v, layer) -> 6 Kuhn tetrahedra each (conforming, u wraps).
-  const int paths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  // Prisms (triangle x layer) -> 3 tetrahedra, split by global node order so that the quad
+  // faces shared by neighbouring prisms are cut along the same diagonal.
   std::vector<Eigen::Vector4i> tets;
   std::vector<int> tags;
   std::vector<Eigen::Vector3d> fibres;
-  for (int l = 0; l < L; ++l) {
-    for (int v = 0; v + 1 < V; ++v) {
-      for (int u = 0; u < U; ++u) {
-        const bool anterior = grid.column_tag(u) == LeafletTag::kAnterior;
-        // Fibre of the cell: circumferential (along u) turned towards radial (along v).
-        const Eigen::Vector3d p00 = grid.at(u, v), p10 = grid.at(u + 1, v), p01 = grid.at(u, v + 1),
-                              p11 = grid.at(u + 1, v + 1);
-        Eigen::Vector3d tu = (p10 + p11 - p00 - p01).normalized();
-        Eigen::Vector3d tv = (p01 + p11 - p00 - p10);
-        tv = (tv - tu * tu.dot(tv)).normalized();
-        const double s = anterior ? (u + 0.5) / (U / 2) : (u + 0.5 - U / 2) / (U / 2);
-        const double angle = fibre_angle(anterior, s);
-        const Eigen::Vector3d fibre = std::cos(angle) * tu + std::sin(angle) * tv;
-        for (const auto& p : paths) {
-          int c[3] = {u, v, l};
-          Eigen::Vector4i t;
-          t[0] = m.node(c[0], c[1], c[2]);
-          for (int k = 0; k < 3; ++k) {
-            ++c[p[k]];
-            t[k + 1] = m.node(c[0], c[1], c[2]);
-          }
-          const Eigen::Vector3d a = lin.V.row(t[0]), b = lin.V.row(t[1]), cc = lin.V.row(t[2]),
-                                d = lin.V.row(t[3]);
-          if ((b - a).cross(cc - a).dot(d - a) < 0) std::swap(t[1], t[2]);
-          tets.push_back(t);
-          tags.push_back(
-              static_cast<int>(anterior ? LeafletTag::kAnterior : LeafletTag::kPosterior));
-          fibres.push_back(fibre);
-        }
+  for (const auto& tri : sm.triangles) {
+    // Element frame from the unrolled plane: circumferential d/dxi, radial d/ddepth.
+    Eigen::Vector2d c2 = Eigen::Vector2d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector2d q = sm.plane[tri[k]];
+      q.x() -= un.perimeter() * std::round((q.x() - sm.plane[tri[0]].x()) / un.perimeter());
+      c2 += q / 3.0;
+    }
+    const double s_c = un.st(c2.x(), c2.y())[0];
+    const double dx = 0.25 * un.perimeter() / U, dd = 0.25;
+    Eigen::Vector3d tu = un.position(un.st(c2.x() + dx, c2.y())) -
+                         un.position(un.st(c2.x() - dx, c2.y()));
+    Eigen::Vector3d tv = un.position(un.st(c2.x(), c2.y() + dd)) -
+                         un.position(un.st(c2.x(), std::max(0.0, c2.y() - dd)));
+    tu.normalize();
+    tv = (tv - tu * tu.dot(tv)).normalized();
+    const bool anterior = anterior_at(s_c);
+    const double s_leaf = anterior ? 2.0 * s_c : 2.0 * s_c - 1.0;
+    const double angle = fibre_angle(anterior, s_leaf);
+    const Eigen::Vector3d fibre = std::cos(angle) * tu + std::sin(angle) * tv;
+    std::array<int, 3> o = tri;
+    std::sort(o.begin(), o.end());
+    for (int l = 0; l < L; ++l) {
+      const int a = m.node(o[0], l), b = m.node(o[1], l), c = m.node(o[2], l);
+      const int a1 = m.node(o[0], l + 1), b1 = m.node(o[1], l + 1), c1 = m.node(o[2], l + 1);
+      for (Eigen::Vector4i t : {Eigen::Vector4i(a, b, c, c1), Eigen::Vector4i(a, b, b1, c1),
+                                Eigen::Vector4i(a, a1, b1, c1)}) {
+        const Eigen::Vector3d p0 = lin.V.row(t[0]), p1 = lin.V.row(t[1]), p2 = lin.V.row(t[2]),
+                              p3 = lin.V.row(t[3]);
+        if ((p1 - p0).cross(p2 - p0).dot(p3 - p0) < 0) std::swap(t[1], t[2]);
+        tets.push_back(t);
+        tags.push_back(
+            static_cast<int>(anterior ? LeafletTag::kAnterior : LeafletTag::kPosterior));
+        fibres.push_back(fibre);
       }
     }
   }
@@ -172,7 +390,7 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   // Prescribed: the annulus row on every layer (and the mid-edge nodes between those).
   std::set<int> ann;
   for (int l = 0; l <= L; ++l) {
-    for (int u = 0; u < U; ++u) ann.insert(m.node(u, 0, l));
+    for (int i : sm.annulus_column) ann.insert(m.node(i, l));
   }
   if (opt.order == TetOrder::kQuadratic) {
     for (const auto& [edge, mid] : m.mesh.mid_edge) {
@@ -182,31 +400,42 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   m.annulus_nodes.assign(ann.begin(), ann.end());
 
   // Pressure acts on the ventricular surface (layer L), triangles facing the ventricle.
-  for (int v = 0; v + 1 < V; ++v) {
-    for (int u = 0; u < U; ++u) {
-      const int a = m.node(u, v, L), b = m.node(u + 1, v, L), c = m.node(u + 1, v + 1, L),
-                d = m.node(u, v + 1, L);
-      m.ventricular_faces.emplace_back(a, b, c);
-      m.ventricular_faces.emplace_back(a, c, d);
-    }
-  }
+  for (const auto& t : sm.triangles)
+    m.ventricular_faces.emplace_back(m.node(t[0], L), m.node(t[1], L), m.node(t[2], L));
 
-  // Chordae (SPEC Sec. 3) on the ventricular surface; each to the tip on its side.
-  auto add = [&](double u_site, int v, bool marginal) {
-    const int u = static_cast<int>(std::lround(u_site)) % U;
-    const double s = static_cast<double>(u) / U;
-    const bool anterolateral = s < 0.25 || s >= 0.75;
+  // Chordae (SPEC Sec. 3) at the surface node nearest to their site; each to the tip on its side.
+  auto nearest = [&](double s_site, double t_site, bool on_free_edge) {
+    const double xi = un.xi(s_site);
+    const double depth = t_site * un.free_edge(xi);
+    int best = -1;
+    double best_d = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < N; ++i) {
+      if (on_free_edge && !sm.free_edge[i]) continue;
+      double dx = sm.plane[i].x() - xi;
+      dx -= un.perimeter() * std::round(dx / un.perimeter());
+      const double d = std::hypot(dx, sm.plane[i].y() - depth);
+      if (d < best_d) {
+        best_d = d;
+        best = i;
+      }
+    }
+    return best;
+  };
+  auto add = [&](double s_site, double t_site, bool marginal) {
+    s_site -= std::floor(s_site);
+    const int i = nearest(s_site, t_site, marginal);
+    const bool anterolateral = s_site < 0.25 || s_site >= 0.75;
     ModelChorda c;
-    c.node = m.node(u, v, L);
+    c.node = m.node(i, L);
     c.papillary = anterolateral ? 0 : 1;
     c.marginal = marginal;
     c.group = static_cast<ChordaeGroup>((anterolateral ? 0 : 2) + (marginal ? 0 : 1));
-    c.u = u;
-    c.v = v;
+    c.s = sm.st[i][0];
+    c.t = sm.st[i][1];
     for (int l = 0; l <= L; ++l) {
-      c.nodes.push_back(m.node(u, v, l));
+      c.nodes.push_back(m.node(i, l));
       if (l > 0 && opt.order == TetOrder::kQuadratic) {
-        const int mid = m.mesh.mid_node(m.node(u, v, l - 1), m.node(u, v, l));
+        const int mid = m.mesh.mid_node(m.node(i, l - 1), m.node(i, l));
         if (mid >= 0) c.nodes.push_back(mid);
       }
     }
@@ -217,14 +446,69 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
     m.chordae.push_back(c);
   };
   for (int k = 0; k < opt.marginal_chordae; ++k)
-    add(static_cast<double>(k) * U / opt.marginal_chordae, V - 1, true);
-  const int v_basal = (V - 1) / 2;
+    add(static_cast<double>(k) / opt.marginal_chordae, 1.0, true);
   for (int i = 0; i < 4; ++i) {
-    const double site = (2 * i + 1) * U / 8.0;
-    add(site, v_basal, false);
-    add(site + 1, v_basal, false);
+    const double site = (2 * i + 1) / 8.0;
+    add(site, 0.5, false);
+    add(site + 1.0 / 30.0, 0.5, false);
   }
   return m;
+}
+
+AtrialSampler make_atrial_sampler(const ValveModel& m, int ures, int vres) {
+  if (ures < 8 || ures % 2 || vres < 3)
+    throw Error("atrial sampler: ures must be even and >= 8, vres >= 3");
+  AtrialSampler out;
+  out.ures = ures;
+  out.vres = vres;
+  const auto& st = m.surface_st;
+  const Eigen::Index F = m.surface_triangles.rows();
+  for (int v = 0; v < vres; ++v) {
+    for (int u = 0; u < ures; ++u) {
+      const Eigen::Vector2d q(static_cast<double>(u) / ures, static_cast<double>(v) / (vres - 1));
+      double best = -std::numeric_limits<double>::infinity();
+      std::array<int, 3> nodes{};
+      Eigen::Vector3d w;
+      for (Eigen::Index f = 0; f < F; ++f) {
+        // Unwrap the triangle around its first vertex, and the query to the same period.
+        Eigen::Vector2d p[3];
+        for (int k = 0; k < 3; ++k) p[k] = st.row(m.surface_triangles(f, k)).transpose();
+        for (int k = 1; k < 3; ++k) p[k].x() -= std::round(p[k].x() - p[0].x());
+        Eigen::Vector2d qq = q;
+        qq.x() -= std::round(qq.x() - p[0].x());
+        const Eigen::Vector2d e1 = p[1] - p[0], e2 = p[2] - p[0], r = qq - p[0];
+        const double det = e1.x() * e2.y() - e1.y() * e2.x();
+        if (std::abs(det) < 1e-300) continue;
+        const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det;
+        const double b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
+        const Eigen::Vector3d bw(1.0 - b1 - b2, b1, b2);
+        if (bw.minCoeff() > best) {
+          best = bw.minCoeff();
+          w = bw;
+          for (int k = 0; k < 3; ++k) nodes[k] = m.surface_triangles(f, k);
+          if (best >= 0) break;
+        }
+      }
+      // Outside every triangle (the free-edge curve between boundary points): clamp.
+      if (best < 0) {
+        w = w.cwiseMax(0.0);
+        w /= w.sum();
+      }
+      out.nodes.push_back(nodes);
+      out.weights.push_back(w);
+    }
+  }
+  return out;
+}
+
+LeafletGrid sample_atrial(const AtrialSampler& sp, const Eigen::VectorXd& x) {
+  LeafletGrid::Points P(static_cast<Eigen::Index>(sp.nodes.size()), 3);
+  for (size_t k = 0; k < sp.nodes.size(); ++k) {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int j = 0; j < 3; ++j) p += sp.weights[k][j] * x.segment<3>(3 * sp.nodes[k][j]);
+    P.row(static_cast<Eigen::Index>(k)) = p.transpose();
+  }
+  return LeafletGrid(sp.ures, sp.vres, std::move(P));
 }
 
 }  // namespace mvtwin::forward

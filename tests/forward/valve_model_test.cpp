@@ -1,6 +1,7 @@
 #include "mvtwin/forward/valve_model.h"
 
 #include <cmath>
+#include <iostream>
 
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
@@ -23,43 +24,65 @@ TEST_P(ValveModelTest, MeshTagsFibresThickness) {
   o.layers = layers;
   o.order = order;
   const ValveModel m = build_valve_model(p.sequence, o);
-  // 6 tetrahedra per grid cell and layer; all positive (checked by the builder, again here).
-  EXPECT_EQ(m.linear.T.rows(), 6 * o.ures * (o.vres - 1) * layers);
+  const int N = m.surface_nodes;
+  const auto F = m.surface_triangles.rows();
+  // 3 tetrahedra per surface triangle and layer; all positive (checked by the builder, again).
+  EXPECT_EQ(m.linear.T.rows(), 3 * F * layers);
+  EXPECT_EQ(m.linear.V.rows(), static_cast<Eigen::Index>(N) * (layers + 1));
   EXPECT_NO_THROW(m.linear.check("test"));
   EXPECT_EQ(m.mesh.num_elements(), m.linear.T.rows());
   if (order == TetOrder::kQuadratic) {
     EXPECT_GT(m.mesh.num_nodes(), m.linear.V.rows());
   }
-  // The atrial surface is the (resampled) end-diastolic grid; thickness as prescribed.
-  const LeafletGrid g =
-      p.sequence.frames[p.sequence.end_diastole].la_surface->resampled(o.ures, o.vres);
-  for (int u = 0; u < o.ures; u += 5) {
-    EXPECT_LT((m.mesh.V.row(m.node(u, 3, 0)).transpose() - g.at(u, 3)).norm(), 1e-12);
-    const double t = (m.mesh.V.row(m.node(u, 3, layers)) - m.mesh.V.row(m.node(u, 3, 0))).norm();
-    EXPECT_NEAR(t, u < o.ures / 2 ? 1.32 : 1.26, 1e-9);
+  // The atrial surface lies on the end-diastolic surface at its nodes' grid coordinates, and
+  // its area equals the grid surface's (the mesh covers the leaflets, no holes, no overlap).
+  const LeafletGrid& ed = *p.sequence.frames[p.sequence.end_diastole].la_surface;
+  double area = 0.0;
+  for (Eigen::Index f = 0; f < F; ++f) {
+    const Eigen::Vector3d a = m.mesh.V.row(m.surface_triangles(f, 0)),
+                          b = m.mesh.V.row(m.surface_triangles(f, 1)),
+                          c = m.mesh.V.row(m.surface_triangles(f, 2));
+    area += 0.5 * (b - a).cross(c - a).norm();
   }
-  // Tags split at ures/2; fibres are unit and tangent to the leaflet.
+  const double grid_area = ed.resampled(96, 60).triangulate().area();
+  EXPECT_NEAR(area, grid_area, 0.03 * grid_area);
+  for (int i = 0; i < N; i += 7) {
+    const Eigen::Vector3d on_grid = ed.sample(m.surface_st(i, 0), m.surface_st(i, 1));
+    EXPECT_LT((m.mesh.V.row(m.node(i, 0)).transpose() - on_grid).norm(), 1e-9);
+    const double t = (m.mesh.V.row(m.node(i, layers)) - m.mesh.V.row(m.node(i, 0))).norm();
+    EXPECT_NEAR(t, m.surface_st(i, 0) < 0.5 ? 1.32 : 1.26, 1e-9);
+  }
+  // The annulus row is the grid's annulus at columns u = 0..ures-1.
+  ASSERT_EQ(m.annulus_column.size(), static_cast<size_t>(o.ures));
+  const LeafletGrid g = ed.resampled(o.ures, ed.vres());
+  for (int u = 0; u < o.ures; ++u) {
+    EXPECT_LT((m.mesh.V.row(m.node(m.annulus_column[u], 0)).transpose() - g.at(u, 0)).norm(),
+              1e-6);
+  }
+  // Tags split at s = 1/2; fibres are unit and tangent to the leaflet.
   int anterior = 0;
   for (int e = 0; e < m.mesh.num_elements(); ++e) {
     anterior += m.mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior);
     EXPECT_NEAR(m.mesh.fibre.row(e).norm(), 1.0, 1e-12);
   }
-  EXPECT_EQ(anterior, m.mesh.num_elements() / 2);
-  // Chordae: 28 marginal + 8 basal, 4 groups, basal 4 per leaflet and 2 per papillary tip-site.
+  EXPECT_GT(anterior, m.mesh.num_elements() / 3);
+  EXPECT_LT(anterior, 2 * m.mesh.num_elements() / 3);
+  // Chordae: 28 marginal on the free edge + 8 basal at mid-leaflet, 4 groups, 4 basal per leaflet.
   int marginal = 0, per_group[4] = {0, 0, 0, 0}, basal_anterior = 0;
   for (const auto& c : m.chordae) {
     marginal += c.marginal;
     per_group[static_cast<int>(c.group)]++;
-    if (!c.marginal && c.u < o.ures / 2) ++basal_anterior;
+    if (!c.marginal && c.s < 0.5) ++basal_anterior;
+    EXPECT_NEAR(c.t, c.marginal ? 1.0 : 0.5, c.marginal ? 1e-9 : 0.2);
     EXPECT_GT(c.ed_length, 1.0);
   }
   EXPECT_EQ(marginal, 28);
   EXPECT_EQ(m.chordae.size(), 36u);
   EXPECT_EQ(basal_anterior, 4);
   for (int g4 : per_group) EXPECT_GT(g4, 0);
-  // Annulus: v = 0 on every layer.
+  // Annulus: t = 0 on every layer.
   EXPECT_GE(m.annulus_nodes.size(), static_cast<size_t>(o.ures * (layers + 1)));
-  EXPECT_EQ(m.ventricular_faces.size(), static_cast<size_t>(2 * o.ures * (o.vres - 1)));
+  EXPECT_EQ(m.ventricular_faces.size(), static_cast<size_t>(F));
   // The quality report is consistent: in (0, 1] and attained by a real element.
   EXPECT_GT(m.min_quality, 0.0);
   EXPECT_LE(m.min_quality, 1.0);
@@ -72,6 +95,49 @@ TEST_P(ValveModelTest, MeshTagsFibresThickness) {
   }));
 }
 
+// The slivers that stopped the first simulator (quality 1e-4 next to the commissures of the
+// (u,v) grid, docs/forward-status.md) are gone on a cohort of every pathology.
+TEST(ValveModel, NoSliversOverACohort) {
+  double worst = 1.0;
+  for (int seed = 300; seed < 320; ++seed) {
+    const Patient p = make_virtual_patient(seed);
+    for (int ures : {20, 30}) {
+      ModelOptions o;
+      o.ures = ures;
+      o.vres = 30;
+      const ValveModel m = build_valve_model(p.sequence, o);
+      worst = std::min(worst, m.min_quality);
+    }
+  }
+  std::cout << "worst element quality over 20 patients x ures {20, 30}: " << worst << "\n";
+  EXPECT_GT(worst, 0.01);
+}
+
+TEST(ValveModel, AtrialSamplerReproducesTheSurface) {
+  const Patient p = make_virtual_patient(24);
+  const ValveModel m = build_valve_model(p.sequence);
+  const LeafletGrid& ed = *p.sequence.frames[p.sequence.end_diastole].la_surface;
+  const AtrialSampler s = make_atrial_sampler(m, 30, 30);
+  Eigen::VectorXd x(3 * m.mesh.num_nodes());
+  for (int i = 0; i < m.mesh.num_nodes(); ++i) x.segment<3>(3 * i) = m.mesh.V.row(i).transpose();
+  const LeafletGrid g = sample_atrial(s, x);
+  // Piecewise-linear interpolation of a curved surface: close to the grid, exact at the annulus.
+  double worst = 0.0, mean = 0.0;
+  for (int v = 0; v < 30; ++v) {
+    for (int u = 0; u < 30; ++u) {
+      const double d = (g.at(u, v) - ed.sample(u / 30.0, v / 29.0)).norm();
+      worst = std::max(worst, d);
+      mean += d / 900.0;
+      if (v == 0) {
+        EXPECT_LT(d, 1e-6);
+      }
+    }
+  }
+  std::cout << "sampler vs grid: mean " << mean << " mm, max " << worst << " mm\n";
+  EXPECT_LT(mean, 0.1);
+  EXPECT_LT(worst, 1.0);
+}
+
 INSTANTIATE_TEST_SUITE_P(LayersAndOrder, ValveModelTest,
                          ::testing::Combine(::testing::Values(1, 3),
                                             ::testing::Values(TetOrder::kLinear,
@@ -80,32 +146,51 @@ INSTANTIATE_TEST_SUITE_P(LayersAndOrder, ValveModelTest,
 TEST(ValveModel, FibresCircumferentialTurningRadialAtAnteriorCommissures) {
   const Patient p = make_virtual_patient(22);
   const ValveModel m = build_valve_model(p.sequence);
-  const int U = m.options.ures, V = m.options.vres;
-  auto cell_fibre = [&](int u, int v) {
-    // first element of cell (u, v, layer 0)
-    return Eigen::Vector3d(m.mesh.fibre.row(6 * (v * U + u)).transpose());
-  };
-  auto along_u = [&](int u, int v) {
-    return Eigen::Vector3d((m.mesh.V.row(m.node(u + 1, v, 0)) - m.mesh.V.row(m.node(u, v, 0)))
-                               .normalized()
-                               .transpose());
+  const LeafletGrid& ed = *p.sequence.frames[p.sequence.end_diastole].la_surface;
+  // Mean |cos| between the fibre and the circumferential direction of the grid over the
+  // elements whose centroid lies in a band of s (mid-leaflet depth).
+  auto alignment = [&](double s0, double s1) {
+    double sum = 0.0;
+    int n = 0;
+    for (Eigen::Index e = 0; e < m.linear.T.rows(); e += 3) {
+      Eigen::Vector2d st = Eigen::Vector2d::Zero();
+      const int a = m.linear.T(e, 0) % m.surface_nodes;
+      for (int k = 0; k < 4; ++k) {
+        Eigen::Vector2d q = m.surface_st.row(m.linear.T(e, k) % m.surface_nodes).transpose();
+        q.x() -= std::round(q.x() - m.surface_st(a, 0));
+        st += q / 4.0;
+      }
+      st.x() -= std::floor(st.x());
+      if (st.x() < s0 || st.x() >= s1 || st.y() < 0.3 || st.y() > 0.7) continue;
+      // Circumferential: along the line of constant depth (mm from the annulus), with the
+      // radial part removed.
+      const double depth = st.y() * ed.radial_length_at(st.x());
+      auto at_depth = [&](double s) {
+        return ed.sample(s, std::min(1.0, depth / ed.radial_length_at(s)));
+      };
+      const Eigen::Vector3d radial =
+          (ed.sample(st.x(), st.y() + 1e-3) - ed.sample(st.x(), st.y() - 1e-3)).normalized();
+      Eigen::Vector3d around = at_depth(st.x() + 1e-3) - at_depth(st.x() - 1e-3);
+      around = (around - radial * radial.dot(around)).normalized();
+      sum += std::abs(m.linear.fibre.row(e).dot(around.transpose()));
+      ++n;
+    }
+    EXPECT_GT(n, 0);
+    return sum / n;
   };
   // Mid-posterior and mid-anterior: circumferential.
-  EXPECT_GT(std::abs(cell_fibre(3 * U / 4, V / 2).dot(along_u(3 * U / 4, V / 2))), 0.95);
-  EXPECT_GT(std::abs(cell_fibre(U / 4, V / 2).dot(along_u(U / 4, V / 2))), 0.95);
-  // Next to an anterior commissure: more radial than circumferential (68 degrees at the first
-  // cell centre), turning gradually back to circumferential.
-  const double c0 = std::abs(cell_fibre(0, V / 2).dot(along_u(0, V / 2)));
-  const double c2 = std::abs(cell_fibre(2, V / 2).dot(along_u(2, V / 2)));
-  const double c5 = std::abs(cell_fibre(5, V / 2).dot(along_u(5, V / 2)));
-  EXPECT_LT(c0, 0.45);
-  EXPECT_LT(c0, c2);
-  EXPECT_LT(c2, c5);
-  EXPECT_GT(c5, 0.95);
-  EXPECT_LT(std::abs(cell_fibre(U / 2 - 1, V / 2).dot(along_u(U / 2 - 1, V / 2))),
-            0.45);  // other commissure
+  EXPECT_GT(alignment(0.70, 0.80), 0.95);
+  EXPECT_GT(alignment(0.20, 0.30), 0.95);
+  // Next to the anterior commissures: more radial than circumferential, turning gradually back.
+  const double c0 = alignment(0.0, 0.03), c1 = alignment(0.05, 0.09), c2 = alignment(0.12, 0.16);
+  // (c1 and c2 are compared with a numerical circumferential direction that differs from the
+  // builder's by up to ~15 degrees in the curved commissural region.)
+  EXPECT_LT(c0, 0.5);
+  EXPECT_LT(c0 + 0.3, c1);
+  EXPECT_GT(c2, 0.9);
+  EXPECT_LT(alignment(0.47, 0.5), 0.5);  // the other commissure
   // Posterior next to the commissure stays circumferential.
-  EXPECT_GT(std::abs(cell_fibre(U - 1, V / 2).dot(along_u(U - 1, V / 2))), 0.9);
+  EXPECT_GT(alignment(0.52, 0.6), 0.9);
 }
 
 TEST(ValveModel, BadInputIsNamed) {

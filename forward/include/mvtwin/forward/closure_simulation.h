@@ -7,6 +7,7 @@
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/elastic_body.h"
+#include "mvtwin/forward/step_solver.h"
 #include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
@@ -24,9 +25,22 @@ struct ClosureOptions {
   int newton_iterations = 1;
   double newton_tolerance = 1e-6;
   Tangent tangent = Tangent::kWarped;
+  /// Linear solver of each step and, for kReusedFactorPcg, its tolerance and iteration cap.
+  LinearSolver solver = LinearSolver::kCholmodSupernodal;
+  double pcg_tolerance = 1e-8;
+  int pcg_max_iterations = 25;
   /// Prescribed boundary motion from the images; off = held at end-diastole (sensitivity).
   bool annulus_motion = true;
   bool papillary_motion = true;
+  /// Leaflet self-contact (SPEC Sec. 4); off for sensitivity studies and the phantom's open
+  /// frames. The penalty stiffness per unit area is contact_stiffness_factor x peak pressure /
+  /// (alarm - contact distance), so the peak pressure alone holds a vertex at
+  /// alarm - (alarm - contact) / factor.
+  bool contact = true;
+  double contact_alarm_mm = 0.6;
+  double contact_distance_mm = 0.3;
+  double contact_friction = 0.5;
+  double contact_stiffness_factor = 2.0;
   /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
   std::vector<int> ruptured_marginal_chordae;
   /// Record the atrial surface every n steps (0: only the end).
@@ -49,8 +63,12 @@ struct ClosureSummary {
   int newton_iterations = 0;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;
-  int contacts = 0;
+  int contacts = 0;           ///< vertex-triangle pairs in contact at the end
+  int max_contacts = 0;       ///< most pairs at once
+  int contact_searches = 0;   ///< proximity searches done
+  int contact_skipped = 0;    ///< searches skipped: nothing within reach
   double final_update_norm = 0;  ///< last velocity update, mm/s
+  int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
 
   std::string brief_report() const;
 };

@@ -1,4 +1,5 @@
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -39,18 +40,39 @@ struct ModelChorda {
   int papillary = 0;  ///< 0 anterolateral, 1 posteromedial tip
   ChordaeGroup group = ChordaeGroup::kAnterolateralMarginal;
   bool marginal = true;
-  int u = 0, v = 0;  ///< grid site of the insertion
+  double s = 0, t = 0;  ///< insertion site in grid coordinates (around, annulus to free edge)
   /// Insertion-point-to-tip distance at end-diastole, mm (rest length = this x factor).
   double ed_length = 0.0;
 };
 
 /// The finite-element model of a valve at end-diastole.
+///
+/// The leaflets are meshed on their own, not on the image grid: the atrial surface is
+/// triangulated in the unrolled plane (annulus arc length, depth along the leaflet in mm) by a
+/// Delaunay triangulation of a lattice clipped to the free edge, so that steep free edges (the
+/// commissural notches, posterior clefts) get well-shaped elements, and each triangle is
+/// extruded through the thickness into prisms split into 3 tetrahedra. The annulus row keeps
+/// the grid's columns u = 0..ures-1. `vres` sets the depth spacing: mean leaflet length /
+/// (vres - 1).
 struct ValveModel {
   ModelOptions options;
   SolidMesh mesh;  ///< leaflets at end-diastole
   TetMesh linear;  ///< the corner (linear) mesh, for export
   std::vector<ModelChorda> chordae;
-  /// Nodes whose motion is prescribed: the annulus (v = 0) on every layer, and for quadratic
+  /// Corner nodes per layer; corner node of surface node i on layer l is l * surface_nodes + i.
+  int surface_nodes = 0;
+  /// Grid coordinates of each surface node: s in [0,1) around the annulus (the image grid's u /
+  /// ures), t in [0,1] from annulus to free edge.
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> surface_st;
+  /// Each surface node in the unrolled plane: annulus arc length from u = 0 and depth along the
+  /// leaflet from the annulus, mm; `perimeter` is the annulus length (the plane's period).
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> surface_plane;
+  double perimeter = 0.0;
+  /// Triangles of the atrial surface (surface node indices), normals towards the ventricle.
+  Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor> surface_triangles;
+  /// Surface node of annulus column u (u = 0..ures-1, t = 0).
+  std::vector<int> annulus_column;
+  /// Nodes whose motion is prescribed: the annulus (t = 0) on every layer, and for quadratic
   /// meshes the mid-edge nodes between them.
   std::vector<int> annulus_nodes;
   /// Triangles of the ventricular surface (corner nodes), oriented towards the ventricle: where
@@ -63,10 +85,20 @@ struct ValveModel {
   double min_quality = 0.0;
   int worst_element = -1;
 
-  /// Corner node of grid point (u, v) on layer l (0 = atrial surface, layers = ventricular):
-  /// (l * vres + v) * ures + u, u wrapping around.
-  int node(int u, int v, int layer) const;
+  /// Corner node of surface node i on layer l (0 = atrial surface, layers = ventricular).
+  int node(int i, int layer) const { return layer * surface_nodes + i; }
 };
+
+/// Samples the model's atrial surface on a (u,v) grid: for each grid point, the surface triangle
+/// that holds it and its barycentric weights in the unrolled plane.
+struct AtrialSampler {
+  int ures = 0, vres = 0;
+  std::vector<std::array<int, 3>> nodes;  ///< corner nodes (layer 0)
+  std::vector<Eigen::Vector3d> weights;
+};
+AtrialSampler make_atrial_sampler(const ValveModel& model, int ures, int vres);
+/// The atrial surface at positions x (all nodes, flattened, mm) as a grid.
+LeafletGrid sample_atrial(const AtrialSampler& sampler, const Eigen::VectorXd& x);
 
 /// Builds the model from the end-diastolic frame of a sequence. Throws mvtwin::Error naming the
 /// problem (no end-diastolic frame, leaflets or papillary tips not observed there, invalid

@@ -1,0 +1,134 @@
+#include "mvtwin/forward/self_contact.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/error.h"
+
+namespace mvtwin::forward {
+namespace {
+
+// Two square plates of n x n vertices (spacing 1 mm) facing each other at distance gap; every
+// vertex and triangle of one plate can touch the other, and the plane coordinates put the
+// plates 100 mm apart so that neither is excluded.
+struct Plates {
+  SelfContact::Surface surface;
+  Eigen::VectorXd x;
+};
+
+Plates make_plates(int n, double gap, double shift = 0.3) {
+  Plates p;
+  const int per = n * n;
+  p.x.resize(3 * 2 * per);
+  p.surface.plane.resize(2 * per, 2);
+  for (int k = 0; k < 2; ++k) {
+    for (int j = 0; j < n; ++j) {
+      for (int i = 0; i < n; ++i) {
+        const int id = k * per + j * n + i;
+        p.x.segment<3>(3 * id) = Eigen::Vector3d(i + k * shift, j + k * shift, k * gap);
+        p.surface.plane.row(id) = Eigen::RowVector2d(i + 100.0 * k, j);
+        p.surface.vertices.push_back(id);
+        p.surface.vertex_plane.push_back(id);
+        p.surface.vertex_area.push_back(1.0);
+      }
+    }
+    for (int j = 0; j + 1 < n; ++j) {
+      for (int i = 0; i + 1 < n; ++i) {
+        const int a = k * per + j * n + i, b = a + 1, c = a + n + 1, d = a + n;
+        p.surface.triangles.push_back({a, b, c});
+        p.surface.triangles.push_back({a, c, d});
+        p.surface.triangle_plane.push_back({a, b, c});
+        p.surface.triangle_plane.push_back({a, c, d});
+      }
+    }
+  }
+  return p;
+}
+
+SelfContact::Options options() {
+  SelfContact::Options o;
+  o.stiffness_per_area = 0.05;
+  o.friction = 0.0;
+  return o;
+}
+
+TEST(SelfContact, PlatesWithinAlarmArePushedApart) {
+  Plates p = make_plates(5, 0.4);
+  SelfContact c(p.surface, options());
+  const int found = c.detect(p.x);
+  // Every vertex of each plate above/below the other plate's interior is in contact.
+  EXPECT_GE(found, 2 * 9);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(p.x.size()), v = f;
+  std::vector<Eigen::Triplet<double>> trip;
+  const double energy = c.add(v, &f, &trip, 1.0, 1.0);
+  EXPECT_GT(energy, 0.0);
+  // Net force zero (action = reaction); the lower plate is pushed down, the upper one up.
+  double lower = 0.0, upper = 0.0;
+  for (int i = 0; i < 25; ++i) lower += f[3 * i + 2];
+  for (int i = 25; i < 50; ++i) upper += f[3 * i + 2];
+  EXPECT_LT(lower, 0.0);
+  EXPECT_GT(upper, 0.0);
+  EXPECT_NEAR(lower + upper, 0.0, 1e-12);
+  EXPECT_NEAR(f.norm() > 0 ? (f.segment(0, 75).sum() + f.segment(75, 75).sum()) : 0.0, 0.0, 1e-9);
+}
+
+TEST(SelfContact, ForceIsMinusEnergyGradient) {
+  Plates p = make_plates(4, 0.35);
+  SelfContact c(p.surface, options());
+  ASSERT_GT(c.detect(p.x), 0);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(p.x.size()), v = f;
+  std::vector<Eigen::Triplet<double>> trip;
+  c.add(v, &f, &trip, 1.0, 1.0);
+  // Central differences of the energy with the pairs re-detected at each perturbed state.
+  const double h = 1e-6;
+  double worst = 0.0;
+  for (int d = 0; d < p.x.size(); ++d) {
+    Eigen::VectorXd xp = p.x, xm = p.x;
+    xp[d] += h;
+    xm[d] -= h;
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(p.x.size());
+    std::vector<Eigen::Triplet<double>> t2;
+    SelfContact cp(p.surface, options()), cm(p.surface, options());
+    cp.detect(xp);
+    cm.detect(xm);
+    const double ep = cp.add(v, &g, &t2, 1, 1), em = cm.add(v, &g, &t2, 1, 1);
+    worst = std::max(worst, std::abs(-(ep - em) / (2 * h) - f[d]));
+  }
+  EXPECT_LT(worst, 1e-6 * std::max(1.0, f.lpNorm<Eigen::Infinity>()));
+}
+
+TEST(SelfContact, FarPlatesSkipTheSearchUntilTheyApproach) {
+  Plates p = make_plates(5, 6.0);
+  SelfContact c(p.surface, options());
+  EXPECT_EQ(c.detect(p.x), 0);
+  EXPECT_EQ(c.searches(), 1);
+  // Small motion: nothing can have come within reach, the search is skipped.
+  Eigen::VectorXd x = p.x;
+  for (int i = 25; i < 50; ++i) x[3 * i + 2] -= 0.5;
+  EXPECT_EQ(c.detect(x), 0);
+  EXPECT_EQ(c.skipped(), 1);
+  // The upper plate comes down to 0.4 mm: searched again and found.
+  for (int i = 25; i < 50; ++i) x[3 * i + 2] = 0.4;
+  EXPECT_GT(c.detect(x), 0);
+  EXPECT_EQ(c.searches(), 2);
+}
+
+TEST(SelfContact, NeighboursInThePlaneAreExcluded) {
+  Plates p = make_plates(5, 0.4);
+  // Put the plates side by side in the plane: all within the exclusion distance.
+  for (int id = 25; id < 50; ++id) p.surface.plane(id, 0) -= 100.0;
+  SelfContact c(p.surface, options());
+  EXPECT_EQ(c.detect(p.x), 0);
+}
+
+TEST(SelfContact, BadOptions) {
+  Plates p = make_plates(3, 1.0);
+  SelfContact::Options o = options();
+  o.alarm_mm = 0.2;
+  o.contact_mm = 0.3;
+  EXPECT_THROW(SelfContact(p.surface, o), Error);
+}
+
+}  // namespace
+}  // namespace mvtwin::forward

@@ -1,0 +1,96 @@
+#include "mvtwin/forward/step_solver.h"
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/rng.h"
+
+namespace mvtwin::forward {
+namespace {
+
+// A 2D Laplacian plus a diagonal shift: symmetric positive definite, like M + h^2 K.
+Eigen::SparseMatrix<double> laplacian(int n, double shift) {
+  std::vector<Eigen::Triplet<double>> t;
+  auto id = [n](int i, int j) { return i * n + j; };
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      t.emplace_back(id(i, j), id(i, j), 4.0 + shift);
+      if (i > 0) t.emplace_back(id(i, j), id(i - 1, j), -1.0);
+      if (i + 1 < n) t.emplace_back(id(i, j), id(i + 1, j), -1.0);
+      if (j > 0) t.emplace_back(id(i, j), id(i, j - 1), -1.0);
+      if (j + 1 < n) t.emplace_back(id(i, j), id(i, j + 1), -1.0);
+    }
+  }
+  Eigen::SparseMatrix<double> A(n * n, n * n);
+  A.setFromTriplets(t.begin(), t.end());
+  return A;
+}
+
+class StepSolverTest : public ::testing::TestWithParam<LinearSolver> {};
+
+TEST_P(StepSolverTest, SolvesASequenceOfSystems) {
+  StepSolver::Options o;
+  o.kind = GetParam();
+  StepSolver s(o);
+  Rng rng(3);
+  Eigen::VectorXd b(900);
+  for (int i = 0; i < 900; ++i) b[i] = rng.normal();
+  for (double shift : {0.1, 0.12, 0.2, 1.0}) {
+    const Eigen::SparseMatrix<double> A = laplacian(30, shift);
+    Eigen::VectorXd x;
+    std::string why;
+    ASSERT_TRUE(s.solve(A, b, &x, &why)) << why;
+    EXPECT_LT((A * x - b).norm(), 1e-7 * b.norm()) << name(GetParam());
+  }
+  EXPECT_EQ(s.stats().analyses, 1);  // same pattern throughout
+  if (GetParam() == LinearSolver::kReusedFactorPcg) {
+    EXPECT_LT(s.stats().factorizations, 4);  // nearby matrices reuse the factor
+    EXPECT_GT(s.stats().pcg_iterations, 0);
+  } else {
+    EXPECT_EQ(s.stats().factorizations, 4);
+  }
+}
+
+TEST_P(StepSolverTest, IndefiniteMatrixFailsWithAReason) {
+  StepSolver::Options o;
+  o.kind = GetParam();
+  StepSolver s(o);
+  const Eigen::SparseMatrix<double> A = laplacian(10, -10.0);
+  Eigen::VectorXd x, b = Eigen::VectorXd::Ones(100);
+  std::string why;
+  const bool ok = s.solve(A, b, &x, &why);
+  if (GetParam() == LinearSolver::kEigenLdlt) {
+    // LDL^T factorizes indefinite matrices; the answer must still solve the system.
+    if (ok) {
+      EXPECT_LT((A * x - b).norm(), 1e-8 * b.norm());
+    }
+  } else {
+    EXPECT_FALSE(ok);
+    EXPECT_NE(why.find("not positive definite"), std::string::npos);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(All, StepSolverTest,
+                         ::testing::Values(LinearSolver::kCholmodSupernodal,
+                                           LinearSolver::kCholmodSimplicial,
+                                           LinearSolver::kEigenLdlt,
+                                           LinearSolver::kReusedFactorPcg),
+                         [](const auto& param_info) {
+                           std::string n = name(param_info.param);
+                           for (char& c : n)
+                             if (c == '-') c = '_';
+                           return n;
+                         });
+
+TEST(StepSolver, NamesRoundTrip) {
+  for (LinearSolver k : {LinearSolver::kCholmodSupernodal, LinearSolver::kCholmodSimplicial,
+                         LinearSolver::kEigenLdlt, LinearSolver::kReusedFactorPcg}) {
+    LinearSolver back;
+    ASSERT_TRUE(parse_linear_solver(name(k), &back));
+    EXPECT_EQ(back, k);
+  }
+  LinearSolver dummy;
+  EXPECT_FALSE(parse_linear_solver("gauss", &dummy));
+}
+
+}  // namespace
+}  // namespace mvtwin::forward
