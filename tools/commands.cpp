@@ -372,7 +372,8 @@ void register_commands(CLI::App& app, Context& ctx) {
         for (const auto& s : r.samples) {
           std::cout << "  t = " << fmt(s.time_s, 2) << " s: tips to annulus plane, anterior "
                     << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm)
-                    << " mm\n";
+                    << " mm; orifice " << fmt(s.orifice_area_mm2, 1) << " of "
+                    << fmt(s.annulus_area_mm2, 0) << " mm^2\n";
         }
         if (!dir->empty()) {
           const auto files = forward::export_closure_vtk(r, *dir);

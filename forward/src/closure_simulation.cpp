@@ -11,6 +11,7 @@
 #include <Eigen/SparseCholesky>
 
 #include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
@@ -280,6 +281,12 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
     s.anterior_tip_mm = t.anterior_mm;
     s.posterior_tip_mm = t.posterior_mm;
+    if (s.la_surface.points().allFinite()) {
+      const ClosureMeasures cm = measure_closure(fr.annulus, s.la_surface.triangulate(), 0.25);
+      s.orifice_area_mm2 = cm.orifice_area_mm2;
+      s.annulus_area_mm2 = cm.annulus_area_mm2;
+      s.orifice_components = cm.orifice_components;
+    }
     result.samples.push_back(std::move(s));
   };
 

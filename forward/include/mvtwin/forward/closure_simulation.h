@@ -79,6 +79,9 @@ struct ClosureSample {
   double observed_time_s = 0;                        ///< time on the image sequence's clock
   LeafletGrid la_surface;                            ///< atrial surface on the model grid
   double anterior_tip_mm = 0, posterior_tip_mm = 0;  ///< to the annulus plane, + atrial
+  /// Regurgitant orifice (core/closure_measures.h) and the annulus opening, mm^2.
+  double orifice_area_mm2 = 0, annulus_area_mm2 = 0;
+  int orifice_components = 0;
 };
 
 struct ClosureResult {
