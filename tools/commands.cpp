@@ -21,6 +21,7 @@
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/forward/valve_model.h"
@@ -353,6 +354,10 @@ void register_commands(CLI::App& app, Context& ctx) {
         ->default_val("cholmod-supernodal");
     auto no_contact = std::make_shared<bool>(false);
     cmd->add_flag("--no-contact", *no_contact, "switch self-contact off");
+    auto sets = std::make_shared<std::vector<std::string>>();
+    cmd->add_option("--set", *sets,
+                    "name=value for any option or parameter (repeatable), e.g. --set dt=0.005 "
+                    "--set peak_pressure_mmhg=100");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
         const Patient p = read_patient(*file, false);
@@ -361,19 +366,21 @@ void register_commands(CLI::App& app, Context& ctx) {
           throw Error("unknown solver '" + *solver + "'");
         o.contact = !*no_contact;
         o.newton_iterations = *newton;
-        o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
         ValveParameters par;
         if (p.truth) {
           par = p.truth->parameters;
           o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
         }
+        for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
+        if (o.record_every == 0) o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
         std::cout << r.summary.brief_report() << "\n";
         for (const auto& s : r.samples) {
           std::cout << "  t = " << fmt(s.time_s, 2) << " s: tips to annulus plane, anterior "
                     << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm)
                     << " mm; orifice " << fmt(s.orifice_area_mm2, 1) << " of "
-                    << fmt(s.annulus_area_mm2, 0) << " mm^2\n";
+                    << fmt(s.annulus_area_mm2, 0) << " mm^2; closest contact "
+                    << fmt(s.min_contact_distance_mm, 2) << " mm\n";
         }
         if (!dir->empty()) {
           const auto files = forward::export_closure_vtk(r, *dir);

@@ -140,8 +140,9 @@ std::string ClosureSummary::brief_report() const {
      << " s (assembly " << assembly_s << ", solve " << solve_s << ", contact " << contact_s
      << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
      << analyses << " analyses, " << pcg_iterations << " PCG iterations; contact: " << contacts
-     << " pairs at the end (max " << max_contacts << "), " << contact_searches << " searches, "
-     << contact_skipped << " skipped";
+     << " pairs at the end (max " << max_contacts << ", closest " << min_contact_distance_mm
+     << " mm), " << contact_searches << " searches, "
+     << contact_reused << " reused the candidate list";
   return os.str();
 }
 
@@ -262,6 +263,17 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   sum.dofs = static_cast<int>(free_dofs.size());
   sum.elements = mesh.num_elements();
 
+  std::optional<SelfContact> contact;
+  if (opt.contact) {
+    SelfContact::Options co;
+    co.alarm_mm = opt.contact_alarm_mm;
+    co.contact_mm = opt.contact_distance_mm;
+    co.friction = opt.contact_friction;
+    co.stiffness_per_area = opt.contact_stiffness_factor *
+                            std::max(params.peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
+                            (opt.contact_alarm_mm - opt.contact_distance_mm);
+    contact.emplace(SelfContact::valve_surface(model), co);
+  }
   const AtrialSampler sampler = make_atrial_sampler(model, U, V);
   auto record = [&](double tau, const Eigen::VectorXd& x) {
     ClosureSample s;
@@ -281,6 +293,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
     s.anterior_tip_mm = t.anterior_mm;
     s.posterior_tip_mm = t.posterior_mm;
+    if (contact) s.min_contact_distance_mm = contact->min_distance();
     if (s.la_surface.points().allFinite()) {
       const ClosureMeasures cm = measure_closure(fr.annulus, s.la_surface.triangulate(), 0.25);
       s.orifice_area_mm2 = cm.orifice_area_mm2;
@@ -290,17 +303,6 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     result.samples.push_back(std::move(s));
   };
 
-  std::optional<SelfContact> contact;
-  if (opt.contact) {
-    SelfContact::Options co;
-    co.alarm_mm = opt.contact_alarm_mm;
-    co.contact_mm = opt.contact_distance_mm;
-    co.friction = opt.contact_friction;
-    co.stiffness_per_area = opt.contact_stiffness_factor *
-                            std::max(params.peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
-                            (opt.contact_alarm_mm - opt.contact_distance_mm);
-    contact.emplace(SelfContact::valve_surface(model), co);
-  }
   std::vector<Eigen::Triplet<double>> trip_c;
 
   Eigen::VectorXd x = X, v = Eigen::VectorXd::Zero(ndof);
@@ -418,7 +420,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.pcg_iterations = linear.stats().pcg_iterations;
     if (contact) {
       sum.contact_searches = contact->searches();
-      sum.contact_skipped = contact->skipped();
+      sum.contact_reused = contact->skipped();
+      sum.min_contact_distance_mm = contact->min_distance();
     }
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <unordered_map>
 
 #include <Eigen/Geometry>
@@ -37,34 +38,75 @@ struct CellKey {
 }  // namespace
 
 SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
+  // The atrial and ventricular surfaces. For quadratic elements each surface triangle is split
+  // at its mid-edge nodes into 4, and the mid-edge nodes are contact vertices too: a quadratic
+  // face loaded at its corners only is loaded inconsistently (uniform pressure puts nothing on
+  // the corners) and its elements invert under concentrated contact forces.
   Surface s;
   const int N = m.surface_nodes, L = m.options.layers;
-  s.plane = m.surface_plane;
+  const bool quadratic = m.mesh.order == TetOrder::kQuadratic;
+  std::vector<Eigen::Vector2d> plane;
+  for (int i = 0; i < N; ++i) plane.push_back(m.surface_plane.row(i).transpose());
   s.period = m.perimeter;
-  std::vector<double> area(N, 0.0);
-  for (Eigen::Index f = 0; f < m.surface_triangles.rows(); ++f) {
-    const Eigen::Vector3d a = m.linear.V.row(m.surface_triangles(f, 0)),
-                          b = m.linear.V.row(m.surface_triangles(f, 1)),
-                          c = m.linear.V.row(m.surface_triangles(f, 2));
-    const double A = 0.5 * (b - a).cross(c - a).norm();
-    for (int k = 0; k < 3; ++k) area[m.surface_triangles(f, k)] += A / 3.0;
-  }
+  std::map<int, int> plane_of_node;   // contact node -> plane index
+  std::map<int, double> area_of_node;
+  auto plane_index = [&](int node, int sa, int sb) {
+    const auto it = plane_of_node.find(node);
+    if (it != plane_of_node.end()) return it->second;
+    Eigen::Vector2d q = plane[sa];
+    if (sb >= 0) {
+      Eigen::Vector2d r = plane[sb];
+      r.x() -= s.period * std::round((r.x() - q.x()) / s.period);
+      q = 0.5 * (q + r);
+    }
+    plane.push_back(q);
+    return plane_of_node[node] = static_cast<int>(plane.size()) - 1;
+  };
   for (int layer : {0, L}) {
-    for (int i = 0; i < N; ++i) {
-      s.vertices.push_back(m.node(i, layer));
-      s.vertex_plane.push_back(i);
-      s.vertex_area.push_back(area[i]);
-    }
     for (Eigen::Index f = 0; f < m.surface_triangles.rows(); ++f) {
-      std::array<int, 3> t, q;
+      int sid[3], nd[3], pl[3];
       for (int k = 0; k < 3; ++k) {
-        q[k] = m.surface_triangles(f, k);
-        t[k] = m.node(q[k], layer);
+        sid[k] = m.surface_triangles(f, k);
+        nd[k] = m.node(sid[k], layer);
+        pl[k] = plane_index(nd[k], sid[k], -1);
       }
-      s.triangles.push_back(t);
-      s.triangle_plane.push_back(q);
+      const int group = m.surface_st(sid[0], 0) < 0.5 ? 0 : 1;
+      std::vector<std::array<int, 3>> sub, sub_plane;
+      if (quadratic) {
+        int mid[3], mpl[3];
+        for (int k = 0; k < 3; ++k) {
+          const int a = k, b = (k + 1) % 3;
+          mid[k] = m.mesh.mid_node(nd[a], nd[b]);
+          if (mid[k] < 0) throw Error("self-contact: surface edge without a mid-edge node");
+          mpl[k] = plane_index(mid[k], sid[a], sid[b]);
+        }
+        // corners 0,1,2; mids 01, 12, 20
+        sub = {{nd[0], mid[0], mid[2]}, {mid[0], nd[1], mid[1]}, {mid[2], mid[1], nd[2]},
+               {mid[0], mid[1], mid[2]}};
+        sub_plane = {{pl[0], mpl[0], mpl[2]}, {mpl[0], pl[1], mpl[1]}, {mpl[2], mpl[1], pl[2]},
+                     {mpl[0], mpl[1], mpl[2]}};
+      } else {
+        sub = {{nd[0], nd[1], nd[2]}};
+        sub_plane = {{pl[0], pl[1], pl[2]}};
+      }
+      for (size_t k = 0; k < sub.size(); ++k) {
+        const Eigen::Vector3d a = m.mesh.V.row(sub[k][0]), b = m.mesh.V.row(sub[k][1]),
+                              c = m.mesh.V.row(sub[k][2]);
+        const double A = 0.5 * (b - a).cross(c - a).norm();
+        for (int j = 0; j < 3; ++j) area_of_node[sub[k][j]] += A / 3.0;
+        s.triangles.push_back(sub[k]);
+        s.triangle_plane.push_back(sub_plane[k]);
+        s.triangle_group.push_back(group);
+      }
     }
   }
+  for (const auto& [node, area] : area_of_node) {
+    s.vertices.push_back(node);
+    s.vertex_plane.push_back(plane_of_node.at(node));
+    s.vertex_area.push_back(area);
+  }
+  s.plane.resize(static_cast<Eigen::Index>(plane.size()), 2);
+  for (size_t i = 0; i < plane.size(); ++i) s.plane.row(static_cast<Eigen::Index>(i)) = plane[i].transpose();
   return s;
 }
 
@@ -77,14 +119,23 @@ SelfContact::SelfContact(Surface surface, const Options& o) : opt_(o), s_(std::m
     throw Error("self-contact: friction, stiffness, margin and exclusion must be >= 0");
   }
   if (s_.vertices.size() != s_.vertex_plane.size() || s_.vertices.size() != s_.vertex_area.size() ||
-      s_.triangles.size() != s_.triangle_plane.size()) {
+      s_.triangles.size() != s_.triangle_plane.size() ||
+      (!s_.triangle_group.empty() && s_.triangle_group.size() != s_.triangles.size())) {
     throw Error("self-contact: surface arrays differ in size");
   }
 }
 
 void SelfContact::full_search(const Eigen::VectorXd& x) {
   ++searches_;
-  pairs_.clear();
+  // Sides of the pairs already known are kept: a vertex that was pushed through a triangle must
+  // be pushed back, not further.
+  std::unordered_map<std::int64_t, signed char> known;
+  known.reserve(candidates_.size());
+  const auto key = [&](int i, int t) {
+    return static_cast<std::int64_t>(i) * static_cast<std::int64_t>(s_.triangles.size()) + t;
+  };
+  for (const Candidate& c : candidates_) known[key(c.vertex, c.triangle)] = c.side;
+  candidates_.clear();
   const double reach = opt_.alarm_mm + opt_.margin_mm;
   const double h = reach;
   std::unordered_map<std::int64_t, std::vector<int>> grid;
@@ -106,13 +157,10 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
       }
     }
   }
-  double nearest = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < s_.vertices.size(); ++i) {
     const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
     const auto it = grid.find(CellKey::of(p, h));
     if (it == grid.end()) continue;
-    Pair best{};
-    best.distance = std::numeric_limits<double>::infinity();
     const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
     for (int t : it->second) {
       bool excluded = false;
@@ -126,38 +174,83 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
                             b = x.segment<3>(3 * s_.triangles[t][1]),
                             c = x.segment<3>(3 * s_.triangles[t][2]);
       const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-      const double d = (p - q).norm();
-      nearest = std::min(nearest, d);
-      if (d < best.distance) {
-        best.distance = d;
-        best.vertex = s_.vertices[i];
-        best.tri = s_.triangles[t];
-        best.weights = barycentric(q, a, b, c);
-        best.normal = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
+      if ((p - q).norm() < reach) {
+        // The side is learnt the first time the vertex is over the face (below); a vertex
+        // near the triangle but beyond its edges may be on either side of its plane.
+        const auto it2 = known.find(key(static_cast<int>(i), t));
+        const signed char side = it2 != known.end() ? it2->second : static_cast<signed char>(0);
+        candidates_.push_back({static_cast<int>(i), t, side});
       }
     }
-    if (best.distance < opt_.alarm_mm) {
-      best.area = s_.vertex_area[i];
-      pairs_.push_back(best);
-    }
   }
-  min_distance_ = nearest;
-  far_ = !(nearest < reach);
-  if (far_) x_search_ = x;
+  x_search_ = x;
 }
 
 int SelfContact::detect(const Eigen::VectorXd& x) {
-  if (far_ && x_search_.size() == x.size()) {
+  // Verlet list: the candidates (pairs within alarm + margin at the last search) hold every
+  // pair within the alarm distance while no node has moved by more than margin / 2 since.
+  bool fresh = x_search_.size() == x.size();
+  if (fresh) {
     double moved = 0.0;
-    for (int v : s_.vertices) moved = std::max(moved, (x.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm());
-    // Every vertex and triangle corner moved less than margin/2: no pair came within reach.
-    if (moved < 0.5 * opt_.margin_mm) {
-      ++skipped_;
-      pairs_.clear();
-      return 0;
+    for (int v : s_.vertices)
+      moved = std::max(moved, (x.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm());
+    fresh = moved < 0.5 * opt_.margin_mm;
+  }
+  if (fresh) {
+    ++skipped_;
+  } else {
+    full_search(x);
+  }
+  pairs_.clear();
+  min_distance_ = std::numeric_limits<double>::infinity();
+  // Closest candidate triangle per vertex and triangle group.
+  size_t k = 0;
+  while (k < candidates_.size()) {
+    const int i = candidates_[k].vertex;
+    const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
+    std::array<Pair, 2> best{};
+    for (Pair& b : best) b.distance = std::numeric_limits<double>::infinity();
+    for (; k < candidates_.size() && candidates_[k].vertex == i; ++k) {
+      const int t = candidates_[k].triangle;
+      const int g = s_.triangle_group.empty() ? 0 : (s_.triangle_group[t] != 0);
+      const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
+                            b = x.segment<3>(3 * s_.triangles[t][1]),
+                            c = x.segment<3>(3 * s_.triangles[t][2]);
+      const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+      const Eigen::Vector3d w = barycentric(q, a, b, c);
+      // Over the face: distance signed by the side the vertex came from, so that a vertex
+      // pushed through is pushed back. Beyond an edge or corner (around the free edge): the
+      // plain distance.
+      Eigen::Vector3d n;
+      double d;
+      if (w.minCoeff() > 1e-9) {
+        n = (b - a).cross(c - a).normalized();
+        if (candidates_[k].side == 0) candidates_[k].side = n.dot(p - q) >= 0 ? 1 : -1;
+        n *= candidates_[k].side;
+        d = n.dot(p - q);
+      } else {
+        d = (p - q).norm();
+        n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
+      }
+      if (d < best[g].distance) {
+        best[g].distance = d;
+        best[g].vertex = s_.vertices[i];
+        best[g].tri = s_.triangles[t];
+        best[g].weights = w;
+        best[g].normal = n;
+        best[g].area = 0.5 * (b - a).cross(c - a).norm();
+      }
+    }
+    for (Pair& b : best) {
+      min_distance_ = std::min(min_distance_, b.distance);
+      if (b.distance < opt_.alarm_mm) {
+        // A free-edge vertex pressed edge-on against a face stands for little area of its own;
+        // the face it presses on carries the load, so the larger of the two areas sets k.
+        b.area = std::max(b.area, s_.vertex_area[i]);
+        pairs_.push_back(b);
+      }
     }
   }
-  full_search(x);
   return static_cast<int>(pairs_.size());
 }
 

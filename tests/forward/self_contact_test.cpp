@@ -122,6 +122,45 @@ TEST(SelfContact, NeighboursInThePlaneAreExcluded) {
   EXPECT_EQ(c.detect(p.x), 0);
 }
 
+// The upper plate's vertices, free, pressed down with a force per area p onto the fixed lower
+// plate and integrated by implicit Euler with the contact stiffness: each comes to rest at the
+// distance where the penalties balance the load, d = alarm - p / (2 stiffness_per_area) (vertices
+// of both plates push on the other's triangles), from either
+// a slow or a fast approach (large steps must not tunnel through).
+TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
+  for (double dt : {1e-3, 2e-2}) {
+    Plates p = make_plates(5, 1.5, 0.0);
+    SelfContact::Options o = options();
+    SelfContact c(p.surface, o);
+    const double load = 0.01;  // N/mm^2 on 1 mm^2 per vertex
+    const double mass = 1e-6, damping = 20.0;
+    Eigen::VectorXd x = p.x, v = Eigen::VectorXd::Zero(x.size());
+    for (int step = 0; step < 4000; ++step) {
+      c.detect(x);
+      Eigen::VectorXd f = Eigen::VectorXd::Zero(x.size());
+      std::vector<Eigen::Triplet<double>> trip;
+      c.add(v, &f, &trip, dt * dt, dt);
+      Eigen::VectorXd diag = Eigen::VectorXd::Constant(x.size(), mass * (1 + damping * dt));
+      for (const auto& t : trip) {
+        if (t.row() == t.col()) diag[t.row()] += t.value();
+      }
+      for (int i = 25; i < 50; ++i) {
+        for (int k = 0; k < 3; ++k) {
+          const int d = 3 * i + k;
+          const double fd = f[d] - (k == 2 ? load : 0.0) - damping * mass * v[d];
+          v[d] += dt * fd / diag[d];  // one linearized implicit step (diagonal system)
+        }
+      }
+      for (int i = 25; i < 50; ++i) x.segment<3>(3 * i) += dt * v.segment<3>(3 * i);
+    }
+    // Both plates' vertices push on the other's triangles: twice the stiffness of one pair.
+    const double expected = o.alarm_mm - load / (2.0 * o.stiffness_per_area);
+    for (int i = 25; i < 50; ++i) {
+      EXPECT_NEAR(x[3 * i + 2], expected, 0.05) << "dt " << dt << " vertex " << i;
+    }
+  }
+}
+
 TEST(SelfContact, BadOptions) {
   Plates p = make_plates(3, 1.0);
   SelfContact::Options o = options();

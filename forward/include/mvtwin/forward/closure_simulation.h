@@ -66,7 +66,10 @@ struct ClosureSummary {
   int contacts = 0;           ///< vertex-triangle pairs in contact at the end
   int max_contacts = 0;       ///< most pairs at once
   int contact_searches = 0;   ///< proximity searches done
-  int contact_skipped = 0;    ///< searches skipped: nothing within reach
+  /// Smallest signed vertex-surface distance of a contact pair at the end, mm (negative: a
+  /// vertex is through a surface); infinity without contact.
+  double min_contact_distance_mm = 0;
+  int contact_reused = 0;     ///< detections that reused the candidate list (no search)
   double final_update_norm = 0;  ///< last velocity update, mm/s
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
 
@@ -82,6 +85,8 @@ struct ClosureSample {
   /// Regurgitant orifice (core/closure_measures.h) and the annulus opening, mm^2.
   double orifice_area_mm2 = 0, annulus_area_mm2 = 0;
   int orifice_components = 0;
+  /// Smallest signed distance of a contact pair (negative: through a surface), mm.
+  double min_contact_distance_mm = 0;
 };
 
 struct ClosureResult {

@@ -1,5 +1,6 @@
 #pragma once
 #include <array>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -20,9 +21,10 @@ namespace mvtwin::forward {
 /// area, so that a pressure p holds a vertex at d_a - p / stiffness_per_area. Friction is
 /// lagged Coulomb friction regularized below `friction_slip_mm_per_s`.
 ///
-/// The proximity search uses a hash grid of cell size d_a + margin. When a search finds no pair
-/// within d_a + margin, no search is done until some vertex has moved by more than margin / 2:
-/// no work while the leaflets are apart.
+/// The proximity search uses a hash grid of cell size d_a + margin and keeps the vertex-triangle
+/// pairs within d_a + margin (a Verlet list). Until some node has moved by more than margin / 2
+/// no search is done, only the distances of those candidates are updated; while the leaflets are
+/// apart the list is empty and a step costs one displacement check.
 class SelfContact {
  public:
   struct Options {
@@ -38,8 +40,8 @@ class SelfContact {
     int vertex;                ///< node index
     std::array<int, 3> tri;    ///< node indices
     Eigen::Vector3d weights;   ///< barycentric weights of the closest point
-    Eigen::Vector3d normal;    ///< from the closest point to the vertex
-    double distance;
+    Eigen::Vector3d normal;    ///< direction that separates them (on the vertex's side)
+    double distance;           ///< signed: negative once the vertex is through the triangle
     double area;               ///< surface area the vertex stands for, mm^2
   };
 
@@ -52,6 +54,9 @@ class SelfContact {
     std::vector<double> vertex_area;
     std::vector<std::array<int, 3>> triangles;
     std::vector<std::array<int, 3>> triangle_plane;
+    /// Group of each triangle (the leaflet): a vertex pairs with the closest triangle of each
+    /// group, so that a fold of its own leaflet cannot hide the other leaflet. Empty: one group.
+    std::vector<int> triangle_group;
     Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> plane;
     double period = 0.0;
   };
@@ -70,10 +75,10 @@ class SelfContact {
              std::vector<Eigen::Triplet<double>>* triplets, double scale_k, double scale_c) const;
 
   const std::vector<Pair>& pairs() const { return pairs_; }
-  /// Searches done and searches skipped because nothing was within reach.
+  /// Full searches done, and detections that reused the candidate list instead.
   int searches() const { return searches_; }
   int skipped() const { return skipped_; }
-  /// Smallest distance of a pair found by the last search (infinity if none).
+  /// Smallest distance among the candidates at the last detection (infinity if none).
   double min_distance() const { return min_distance_; }
 
  private:
@@ -82,8 +87,13 @@ class SelfContact {
   Options opt_;
   Surface s_;
   std::vector<Pair> pairs_;
-  Eigen::VectorXd x_search_;  // positions at the last full search that found nothing near
-  bool far_ = false;
+  struct Candidate {
+    int vertex;        // index into the surface's vertices
+    int triangle;
+    signed char side;  // side of the triangle the vertex is on (+1 along its normal)
+  };
+  std::vector<Candidate> candidates_;            // by vertex
+  Eigen::VectorXd x_search_;                     // positions at the last full search
   int searches_ = 0, skipped_ = 0;
   double min_distance_ = 0.0;
 };

@@ -1,0 +1,169 @@
+#include "mvtwin/forward/closure_settings.h"
+
+#include <charconv>
+#include <functional>
+#include <map>
+#include <sstream>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+
+namespace mvtwin::forward {
+namespace {
+
+double to_double(const std::string& name, const std::string& v) {
+  double x = 0;
+  const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (ec != std::errc() || p != v.data() + v.size()) {
+    throw Error("--set " + name + ": '" + v + "' is not a number");
+  }
+  return x;
+}
+int to_int(const std::string& name, const std::string& v) {
+  int x = 0;
+  const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (ec != std::errc() || p != v.data() + v.size()) {
+    throw Error("--set " + name + ": '" + v + "' is not an integer");
+  }
+  return x;
+}
+bool to_bool(const std::string& name, const std::string& v) {
+  if (v == "1" || v == "true" || v == "on" || v == "yes") return true;
+  if (v == "0" || v == "false" || v == "off" || v == "no") return false;
+  throw Error("--set " + name + ": '" + v + "' is not on/off");
+}
+std::string str(double x) {
+  std::ostringstream os;
+  os.precision(10);
+  os << x;
+  return os.str();
+}
+
+struct Field {
+  std::function<void(ClosureOptions&, const std::string&, const std::string&)> set;
+  std::function<std::string(const ClosureOptions&)> get;
+};
+
+const std::map<std::string, Field>& fields() {
+  static const std::map<std::string, Field> f = [] {
+    std::map<std::string, Field> m;
+    auto dbl = [&](const std::string& n, auto member) {
+      m[n] = {[member](ClosureOptions& o, const std::string& k, const std::string& v) {
+                member(o) = to_double(k, v);
+              },
+              [member](const ClosureOptions& o) {
+                return str(member(const_cast<ClosureOptions&>(o)));
+              }};
+    };
+    auto integer = [&](const std::string& n, auto member) {
+      m[n] = {[member](ClosureOptions& o, const std::string& k, const std::string& v) {
+                member(o) = to_int(k, v);
+              },
+              [member](const ClosureOptions& o) {
+                return std::to_string(member(const_cast<ClosureOptions&>(o)));
+              }};
+    };
+    auto boolean = [&](const std::string& n, auto member) {
+      m[n] = {[member](ClosureOptions& o, const std::string& k, const std::string& v) {
+                member(o) = to_bool(k, v);
+              },
+              [member](const ClosureOptions& o) {
+                return std::string(member(const_cast<ClosureOptions&>(o)) ? "on" : "off");
+              }};
+    };
+    dbl("dt", [](ClosureOptions& o) -> double& { return o.dt; });
+    dbl("stretch", [](ClosureOptions& o) -> double& { return o.stretch; });
+    dbl("density", [](ClosureOptions& o) -> double& { return o.density; });
+    dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });
+    dbl("rayleigh_stiffness", [](ClosureOptions& o) -> double& { return o.rayleigh_stiffness; });
+    dbl("newton_tolerance", [](ClosureOptions& o) -> double& { return o.newton_tolerance; });
+    dbl("pcg_tolerance", [](ClosureOptions& o) -> double& { return o.pcg_tolerance; });
+    dbl("contact_alarm_mm", [](ClosureOptions& o) -> double& { return o.contact_alarm_mm; });
+    dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact_distance_mm; });
+    dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact_friction; });
+    dbl("contact_stiffness_factor",
+        [](ClosureOptions& o) -> double& { return o.contact_stiffness_factor; });
+    dbl("al_thickness_mm", [](ClosureOptions& o) -> double& { return o.model.al_thickness_mm; });
+    dbl("pl_thickness_mm", [](ClosureOptions& o) -> double& { return o.model.pl_thickness_mm; });
+    integer("ures", [](ClosureOptions& o) -> int& { return o.model.ures; });
+    integer("vres", [](ClosureOptions& o) -> int& { return o.model.vres; });
+    integer("layers", [](ClosureOptions& o) -> int& { return o.model.layers; });
+    integer("marginal_chordae", [](ClosureOptions& o) -> int& { return o.model.marginal_chordae; });
+    integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
+    integer("pcg_max_iterations", [](ClosureOptions& o) -> int& { return o.pcg_max_iterations; });
+    integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
+    integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
+    boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
+    boolean("annulus_motion", [](ClosureOptions& o) -> bool& { return o.annulus_motion; });
+    boolean("papillary_motion", [](ClosureOptions& o) -> bool& { return o.papillary_motion; });
+    m["order"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
+                    if (v == "linear") {
+                      o.model.order = TetOrder::kLinear;
+                    } else if (v == "quadratic") {
+                      o.model.order = TetOrder::kQuadratic;
+                    } else {
+                      throw Error("--set " + k + ": '" + v + "' is not linear or quadratic");
+                    }
+                  },
+                  [](const ClosureOptions& o) {
+                    return std::string(o.model.order == TetOrder::kLinear ? "linear"
+                                                                          : "quadratic");
+                  }};
+    m["solver"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
+                     if (!parse_linear_solver(v, &o.solver)) {
+                       throw Error("--set " + k + ": unknown solver '" + v + "'");
+                     }
+                   },
+                   [](const ClosureOptions& o) { return std::string(name(o.solver)); }};
+    m["tangent"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
+                      if (v == "warped") {
+                        o.tangent = Tangent::kWarped;
+                      } else if (v == "consistent") {
+                        o.tangent = Tangent::kConsistent;
+                      } else {
+                        throw Error("--set " + k + ": '" + v + "' is not warped or consistent");
+                      }
+                    },
+                    [](const ClosureOptions& o) {
+                      return std::string(o.tangent == Tangent::kWarped ? "warped" : "consistent");
+                    }};
+    return m;
+  }();
+  return f;
+}
+
+}  // namespace
+
+void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) {
+  const auto eq = a.find('=');
+  if (eq == std::string::npos || eq == 0) throw Error("--set needs name=value, got '" + a + "'");
+  const std::string name = a.substr(0, eq), value = a.substr(eq + 1);
+  if (const auto it = fields().find(name); it != fields().end()) {
+    it->second.set(*o, name, value);
+    return;
+  }
+  if (name == "peak_pressure_mmhg") {
+    p->peak_pressure_mpa = units::mmhg_to_mpa(to_double(name, value));
+    return;
+  }
+  bool found = false;
+  p->for_each([&](const std::string& n, double& x, const char*) {
+    if (n == name) {
+      x = to_double(name, value);
+      found = true;
+    }
+  });
+  if (found) return;
+  std::string known;
+  for (const auto& [n, f] : fields()) known += " " + n;
+  p->for_each([&](const std::string& n, double&, const char*) { known += " " + n; });
+  throw Error("--set: unknown name '" + name + "'; known:" + known + " peak_pressure_mmhg");
+}
+
+std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& o) {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& [n, f] : fields()) out.emplace_back(n, f.get(o));
+  return out;
+}
+
+}  // namespace mvtwin::forward
