@@ -21,6 +21,7 @@
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/core/simulation_file.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/model_vtk.h"
@@ -49,6 +50,37 @@ std::string fmt(double v, int prec = 2) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", prec, v);
   return b;
+}
+
+void print_simulation_info(const SimulationRecord& r, std::ostream& os) {
+  os << "simulation of " << r.patient_id << (r.synthetic ? "   [SYNTHETIC: virtual patient]" : "")
+     << "  (" << r.patient_file << ")\n";
+  os << "made by   mvtwin " << r.provenance.version << ", " << r.provenance.created_utc << "\n";
+  os << "command   " << r.provenance.command << "\n";
+  os << "status    " << r.status << (r.reason.empty() ? "" : ": " + r.reason) << "\n";
+  os << "summary  ";
+  for (const auto& [k, v] : r.summary) os << " " << k << "=" << v;
+  os << "\nparameters";
+  r.parameters.for_each([&](const std::string& n, double v, const char* unit) {
+    os << " " << n << "=" << v << (std::string(unit) == "1" ? "" : " " + std::string(unit));
+  });
+  os << "\noptions  ";
+  for (const auto& [k, v] : r.options) os << " " << k << "=" << v;
+  os << "\nsamples   " << r.time_s.size() << " on a " << r.la_surface.front().ures() << " x "
+     << r.la_surface.front().vres() << " grid\n";
+  for (size_t i = 0; i < r.time_s.size(); ++i) {
+    os << "  t = " << fmt(r.time_s[i], 2) << " s (observed " << fmt(r.observed_time_s[i], 3)
+       << " s): tips " << fmt(r.anterior_tip_mm[i]) << " / " << fmt(r.posterior_tip_mm[i])
+       << " mm, orifice " << fmt(r.orifice_area_mm2[i], 1) << " of "
+       << fmt(r.annulus_area_mm2[i], 0) << " mm^2\n";
+  }
+  double smax = 0, vmax = 0;
+  for (Eigen::Index e = 0; e < r.element_strain.size(); ++e) {
+    smax = std::max(smax, r.element_strain[e]);
+    vmax = std::max(vmax, r.element_stress_mpa[e]);
+  }
+  os << "end state " << r.mesh.T.rows() << " tetrahedra; largest principal strain " << fmt(smax, 3)
+     << ", largest von Mises stress " << fmt(vmax * 1000.0, 1) << " kPa\n";
 }
 
 void print_info(const Patient& p, std::ostream& os) {
@@ -262,12 +294,16 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- info ------------------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand("info", "Human summary of a patient file");
-    cmd->footer("Example:\n  mvtwin info patient.h5");
+    auto* cmd = app.add_subcommand("info", "Human summary of a patient or simulation file");
+    cmd->footer("Examples:\n  mvtwin info patient.h5\n  mvtwin info closed.h5");
     auto file = std::make_shared<std::string>();
-    cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
+    cmd->add_option("FILE", *file, "patient or simulation file (HDF5)")->required();
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
+        if (mvtwin_file_format(*file) == "mvtwin-simulation") {
+          print_simulation_info(read_simulation_file(*file), std::cout);
+          return 0;
+        }
         const Patient p = read_patient(*file, true);
         print_info(p, std::cout);
         return 0;
@@ -332,16 +368,22 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- simulate (work in progress: no contact, no result file yet) -----------------------------
   {
-    auto* cmd =
-        app.add_subcommand("simulate", "Simulate the closure of a patient (work in progress)");
+    auto* cmd = app.add_subcommand("simulate", "Simulate the closure of a patient");
     cmd->footer(
-        "Example:\n  mvtwin simulate patient.h5 --vtk sim/ --ures 16 --vres 16\n"
+        "Examples:\n  mvtwin simulate patient.h5 --out closed.h5 --vtk sim/\n"
+        "  mvtwin simulate patient.h5 --out closed.h5 --set dt=0.005 --set contact=off\n"
+        "  mvtwin simulate patient.h5 --out closed.h5 --set newton_iterations=4 "
+        "--set contact_stiffness_factor=20 --solver reused-factor-pcg   (no interpenetration)\n"
         "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
-        "Not yet: self-contact, the HDF5 result file, --set.");
+        "Exit status 4 when the simulation fails (the result file says why).");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
+    auto out = std::make_shared<std::string>();
+    auto force = std::make_shared<bool>(false);
     auto opts = std::make_shared<forward::ClosureOptions>();
     auto newton = std::make_shared<int>(1);
+    cmd->add_option("--out", *out, "result file (HDF5)");
+    cmd->add_flag("--force", *force, "replace an existing result file");
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--vtk", *dir, "directory for the ParaView series");
     add_grid_options(cmd, opts->model.ures, opts->model.vres);
@@ -373,6 +415,11 @@ void register_commands(CLI::App& app, Context& ctx) {
         }
         for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
         if (o.record_every == 0) o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
+        if (!out->empty()) refuse_overwrite(*out, *force);
+        std::cout << "simulating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
+                  << o.model.ures << " x " << o.model.vres << " grid, " << o.model.layers
+                  << " layer(s), dt " << o.dt << " s, contact " << (o.contact ? "on" : "off")
+                  << std::endl;
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
         std::cout << r.summary.brief_report() << "\n";
         for (const auto& s : r.samples) {
@@ -382,10 +429,31 @@ void register_commands(CLI::App& app, Context& ctx) {
                     << fmt(s.annulus_area_mm2, 0) << " mm^2; closest contact "
                     << fmt(s.min_contact_distance_mm, 2) << " mm\n";
         }
+        if (!r.samples.empty()) {
+          const auto& a = r.samples.front();
+          const auto& b = r.samples.back();
+          std::cout << "closure: regurgitant orifice " << fmt(a.orifice_area_mm2, 1) << " -> "
+                    << fmt(b.orifice_area_mm2, 1) << " mm^2 ("
+                    << fmt(100.0 * b.orifice_area_mm2 / std::max(b.annulus_area_mm2, 1e-9), 1)
+                    << " % of the annulus opening); closest contact "
+                    << fmt(r.summary.min_contact_distance_mm, 2) << " mm\n";
+        }
+        if (!out->empty()) {
+          SimulationRecord rec = forward::make_simulation_record(r, o, par);
+          rec.patient_id = p.id;
+          rec.patient_file = *file;
+          rec.synthetic = p.synthetic;
+          rec.provenance.version = kVersion;
+          rec.provenance.command = ctx.command_line;
+          rec.provenance.created_utc = utc_now_iso8601();
+          rec.provenance.seed = p.provenance.seed;
+          write_simulation_file(*out, rec);
+          std::cout << "wrote " << *out << " (mvtwin info " << *out << ")\n";
+        }
         if (!dir->empty()) {
           const auto files = forward::export_closure_vtk(r, *dir);
           std::cout << "wrote " << files.size() << " files to " << *dir
-                    << " (open simulation.pvd)\n";
+                    << " (open simulation.pvd and leaflets_end.vtu)\n";
         }
         return r.summary.status == forward::ClosureStatus::kConverged ? 0 : 4;
       };

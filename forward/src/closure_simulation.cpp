@@ -7,7 +7,9 @@
 #include <sstream>
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <Eigen/SparseCholesky>
 
 #include "mvtwin/core/annulus_plane.h"
@@ -15,6 +17,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
+#include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/self_contact.h"
 
 namespace mvtwin::forward {
@@ -415,6 +418,43 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   };
 
   auto finish = [&] {
+    // Per-element strain and stress at the end, from the corner nodes.
+    result.rest_mesh = model.linear;
+    const Eigen::Index E = model.linear.T.rows();
+    result.element_strain.resize(E);
+    result.element_stress_mpa.resize(E);
+    for (Eigen::Index e = 0; e < E; ++e) {
+      Eigen::Matrix3d Dm, Ds;
+      for (int k = 0; k < 3; ++k) {
+        Dm.col(k) = (model.linear.V.row(model.linear.T(e, k + 1)) -
+                     model.linear.V.row(model.linear.T(e, 0))).transpose();
+        Ds.col(k) = result.positions.segment<3>(3 * model.linear.T(e, k + 1)) -
+                    result.positions.segment<3>(3 * model.linear.T(e, 0));
+      }
+      const Eigen::Matrix3d F = Ds * Dm.inverse();
+      const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      // Co-rotational strain: S - I with F = R S (S = V Sigma V^T).
+      const Eigen::Matrix3d eps = svd.matrixV() * (svd.singularValues().asDiagonal()) *
+                                      svd.matrixV().transpose() -
+                                  Eigen::Matrix3d::Identity();
+      result.element_strain[e] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(eps)
+                                     .eigenvalues()
+                                     .maxCoeff();
+      Eigen::Matrix<double, 6, 1> ev;
+      ev << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(1, 2), 2 * eps(0, 2), 2 * eps(0, 1);
+      const TransverselyIsotropic mat =
+          model.linear.tag[e] == static_cast<int>(LeafletTag::kAnterior)
+              ? TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale)
+              : TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale);
+      const Eigen::Matrix<double, 6, 1> sv =
+          mat.stiffness(model.linear.fibre.row(e).transpose()) * ev;
+      const double vm = std::sqrt(0.5 * ((sv[0] - sv[1]) * (sv[0] - sv[1]) +
+                                         (sv[1] - sv[2]) * (sv[1] - sv[2]) +
+                                         (sv[2] - sv[0]) * (sv[2] - sv[0])) +
+                                  3.0 * (sv[3] * sv[3] + sv[4] * sv[4] + sv[5] * sv[5]));
+      result.element_strain[e] = std::isfinite(result.element_strain[e]) ? result.element_strain[e] : NAN;
+      result.element_stress_mpa[e] = vm;
+    }
     sum.analyses = linear.stats().analyses;
     sum.factorizations = linear.stats().factorizations;
     sum.pcg_iterations = linear.stats().pcg_iterations;
@@ -464,6 +504,49 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   sum.status = ClosureStatus::kConverged;
   finish();
   return result;
+}
+
+SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOptions& o,
+                                        const ValveParameters& p) {
+  SimulationRecord rec;
+  rec.options = describe_options(o);
+  rec.parameters = p;
+  const ClosureSummary& s = r.summary;
+  rec.status = s.status == ClosureStatus::kConverged ? "converged" : "failed";
+  rec.reason = s.reason;
+  rec.summary = {{"steps", s.steps},
+                 {"halvings", s.halvings},
+                 {"newton_iterations", s.newton_iterations},
+                 {"dofs", s.dofs},
+                 {"elements", s.elements},
+                 {"wall_s", s.wall_s},
+                 {"assembly_s", s.assembly_s},
+                 {"solve_s", s.solve_s},
+                 {"contact_s", s.contact_s},
+                 {"other_s", s.other_s},
+                 {"contacts", s.contacts},
+                 {"max_contacts", s.max_contacts},
+                 {"contact_searches", s.contact_searches},
+                 {"min_contact_distance_mm", s.min_contact_distance_mm},
+                 {"factorizations", s.factorizations},
+                 {"pcg_iterations", s.pcg_iterations},
+                 {"final_update_norm", s.final_update_norm}};
+  for (const ClosureSample& c : r.samples) {
+    rec.time_s.push_back(c.time_s);
+    rec.observed_time_s.push_back(c.observed_time_s);
+    rec.anterior_tip_mm.push_back(c.anterior_tip_mm);
+    rec.posterior_tip_mm.push_back(c.posterior_tip_mm);
+    rec.orifice_area_mm2.push_back(c.orifice_area_mm2);
+    rec.annulus_area_mm2.push_back(c.annulus_area_mm2);
+    rec.la_surface.push_back(c.la_surface);
+  }
+  rec.mesh = r.rest_mesh;
+  const Eigen::Index N = r.rest_mesh.V.rows();
+  rec.final_positions.resize(N, 3);
+  for (Eigen::Index i = 0; i < N; ++i) rec.final_positions.row(i) = r.positions.segment<3>(3 * i).transpose();
+  rec.element_strain = r.element_strain;
+  rec.element_stress_mpa = r.element_stress_mpa;
+  return rec;
 }
 
 }  // namespace mvtwin::forward

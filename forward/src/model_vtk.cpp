@@ -67,6 +67,22 @@ std::vector<std::filesystem::path> export_closure_vtk(const ClosureResult& r,
   }
   write_pvd(dir / "simulation.pvd", steps);
   out.push_back(dir / "simulation.pvd");
+  if (r.rest_mesh.T.rows() > 0 && r.element_strain.size() == r.rest_mesh.T.rows()) {
+    // The end state as a volume mesh with per-element strain and stress.
+    TetMesh end = r.rest_mesh;
+    for (Eigen::Index i = 0; i < end.V.rows(); ++i)
+      end.V.row(i) = r.positions.segment<3>(3 * i).transpose();
+    VtkArray strain{"strain_max_principal", 1,
+                    std::vector<double>(r.element_strain.data(),
+                                        r.element_strain.data() + r.element_strain.size()),
+                    false};
+    VtkArray stress{"stress_von_mises_MPa", 1,
+                    std::vector<double>(r.element_stress_mpa.data(),
+                                        r.element_stress_mpa.data() + r.element_stress_mpa.size()),
+                    false};
+    write_vtu(dir / "leaflets_end.vtu", end, {}, {strain, stress});
+    out.push_back(dir / "leaflets_end.vtu");
+  }
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 
 #include "mvtwin/core/valve_parameters.h"
+#include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/elastic_body.h"
 #include "mvtwin/forward/step_solver.h"
@@ -93,6 +94,11 @@ struct ClosureResult {
   ClosureSummary summary;
   std::vector<ClosureSample> samples;  ///< recorded states, the last is the end state
   Eigen::VectorXd positions;           ///< all nodes at the end, flattened, mm
+  /// The corner (linear) mesh at rest (its nodes are the first of `positions`), and per
+  /// element at the end: largest principal co-rotational strain (from the corners) and the von
+  /// Mises stress of the material's response to it, MPa.
+  TetMesh rest_mesh;
+  Eigen::VectorXd element_strain, element_stress_mpa;
 };
 
 /// Simulates the closure of `sequence` from end-diastole to the first closed frame with the
@@ -100,5 +106,10 @@ struct ClosureResult {
 /// happened. Throws mvtwin::Error for invalid options or a sequence that cannot be modelled.
 ClosureResult simulate_closure(const ValveSequence& sequence, const ValveParameters& parameters,
                                const ClosureOptions& options = {});
+
+/// The result as a file record (core/simulation_file.h), with the options and parameters that
+/// produced it.
+SimulationRecord make_simulation_record(const ClosureResult& result, const ClosureOptions& options,
+                                        const ValveParameters& parameters);
 
 }  // namespace mvtwin::forward
