@@ -94,6 +94,8 @@ const std::map<std::string, Field>& fields() {
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
+    boolean("contact_limit_motion",
+            [](ClosureOptions& o) -> bool& { return o.contact_limit_motion; });
     boolean("annulus_motion", [](ClosureOptions& o) -> bool& { return o.annulus_motion; });
     boolean("papillary_motion", [](ClosureOptions& o) -> bool& { return o.papillary_motion; });
     m["order"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {

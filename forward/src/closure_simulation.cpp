@@ -412,9 +412,20 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       sum.final_update_norm = dv.lpNorm<Eigen::Infinity>();
       if (sum.final_update_norm < opt.newton_tolerance) break;
     }
-    *x_io = x0 + h * v1;
+    const Eigen::VectorXd x_new = x0 + h * v1;
+    if (!x_new.allFinite()) {
+      *why = "non-finite positions";
+      return false;
+    }
+    double moved = 0.0;
+    if (contact && opt.contact_limit_motion && !contact->step_is_safe(x0, x_new, &moved)) {
+      *why = "a node near the other leaflet moved " + std::to_string(moved) +
+             " mm in one step (more than alarm - contact distance)";
+      return false;
+    }
+    *x_io = x_new;
     *v_io = v1;
-    return x_io->allFinite();
+    return true;
   };
 
   auto finish = [&] {
@@ -452,7 +463,6 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
                                          (sv[1] - sv[2]) * (sv[1] - sv[2]) +
                                          (sv[2] - sv[0]) * (sv[2] - sv[0])) +
                                   3.0 * (sv[3] * sv[3] + sv[4] * sv[4] + sv[5] * sv[5]));
-      result.element_strain[e] = std::isfinite(result.element_strain[e]) ? result.element_strain[e] : NAN;
       result.element_stress_mpa[e] = vm;
     }
     sum.analyses = linear.stats().analyses;

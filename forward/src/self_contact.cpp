@@ -123,6 +123,7 @@ SelfContact::SelfContact(Surface surface, const Options& o) : opt_(o), s_(std::m
       (!s_.triangle_group.empty() && s_.triangle_group.size() != s_.triangles.size())) {
     throw Error("self-contact: surface arrays differ in size");
   }
+
 }
 
 void SelfContact::full_search(const Eigen::VectorXd& x) {
@@ -252,6 +253,21 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
     }
   }
   return static_cast<int>(pairs_.size());
+}
+
+bool SelfContact::step_is_safe(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1,
+                               double* worst) const {
+  double m = 0.0;
+  for (const Candidate& c : candidates_) {
+    m = std::max(m, (x1.segment<3>(3 * s_.vertices[c.vertex]) -
+                     x0.segment<3>(3 * s_.vertices[c.vertex])).norm());
+    for (int k = 0; k < 3; ++k) {
+      const int n = s_.triangles[c.triangle][k];
+      m = std::max(m, (x1.segment<3>(3 * n) - x0.segment<3>(3 * n)).norm());
+    }
+  }
+  if (worst) *worst = m;
+  return m <= opt_.alarm_mm - opt_.contact_mm;
 }
 
 double SelfContact::add(const Eigen::VectorXd& v, Eigen::VectorXd* f,

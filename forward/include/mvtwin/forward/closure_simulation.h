@@ -42,6 +42,10 @@ struct ClosureOptions {
   double contact_distance_mm = 0.3;
   double contact_friction = 0.5;
   double contact_stiffness_factor = 2.0;
+  /// Retry (halve) a step that moves a node near the other leaflet by more than alarm - contact
+  /// distance (guards against tunnelling at large dt; off by default: on the valve it costs
+  /// many halvings and does not reduce the load-driven sinking, docs/forward-status.md).
+  bool contact_limit_motion = false;
   /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
   std::vector<int> ruptured_marginal_chordae;
   /// Record the atrial surface every n steps (0: only the end).

@@ -74,6 +74,12 @@ class SelfContact {
   double add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
              std::vector<Eigen::Triplet<double>>* triplets, double scale_k, double scale_c) const;
 
+  /// False when a step from x0 to x1 moved a node of a candidate pair (a vertex and a triangle
+  /// within alarm + margin of each other) by more than alarm - contact distance: such a step
+  /// could carry a vertex through the zone where the penalty acts (tunnelling) and is to be
+  /// retried with a smaller step. `worst` receives the largest such motion.
+  bool step_is_safe(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1, double* worst) const;
+
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
   int searches() const { return searches_; }
