@@ -13,5 +13,7 @@ struct Context {
 };
 
 void register_commands(CLI::App& app, Context& ctx);
+/// mvtwin bench closure | accuracy | stability (tools/bench.cpp).
+void register_bench(CLI::App& app, Context& ctx);
 
 }  // namespace mvtwin::tools

@@ -1,0 +1,350 @@
+// mvtwin bench closure | accuracy | stability: figures, not tests. Each prints a table and,
+// with --json FILE, writes the figures with what produced them (version, command, settings).
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/core/rng.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/closure_simulation.h"
+
+namespace mvtwin::tools {
+namespace {
+
+using nlohmann::json;
+
+void write_json(const std::string& path, const json& j) {
+  if (path.empty()) return;
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream f(tmp);
+    f << j.dump(2) << "\n";
+    if (!f) throw Error(path + ": cannot write");
+  });
+  std::cout << "wrote " << path << "\n";
+}
+
+json provenance(const Context& ctx) {
+  return {{"mvtwin_version", kVersion}, {"command", ctx.command_line},
+          {"created_utc", utc_now_iso8601()}};
+}
+
+struct Run {
+  forward::ClosureResult result;
+  double wall_s = 0;
+};
+
+Run run(const Patient& p, const forward::ClosureOptions& o) {
+  Run r;
+  r.result = forward::simulate_closure(p.sequence, p.truth->parameters, o);
+  r.wall_s = r.result.summary.wall_s;
+  return r;
+}
+
+/// Symmetric point-to-mesh distance between the end atrial surfaces of two runs.
+DistanceStats end_error(const Run& a, const Run& ref) {
+  return symmetric_surface_distance(a.result.samples.back().la_surface.triangulate(),
+                                    ref.result.samples.back().la_surface.triangulate())
+      .symmetric;
+}
+
+json summary_json(const Run& r) {
+  const auto& s = r.result.summary;
+  return {{"status", s.status == forward::ClosureStatus::kConverged ? "converged" : "failed"},
+          {"reason", s.reason},
+          {"wall_s", s.wall_s},
+          {"steps", s.steps},
+          {"halvings", s.halvings},
+          {"dofs", s.dofs},
+          {"tets", s.elements},
+          {"assembly_s", s.assembly_s},
+          {"solve_s", s.solve_s},
+          {"contact_s", s.contact_s},
+          {"factorizations", s.factorizations},
+          {"min_contact_distance_mm", s.min_contact_distance_mm},
+          {"orifice_end_mm2", r.result.samples.back().orifice_area_mm2}};
+}
+
+forward::ClosureOptions with_settings(forward::ClosureOptions o,
+                                      const std::vector<std::string>& sets) {
+  ValveParameters dummy;
+  for (const auto& a : sets) forward::apply_setting(a, &o, &dummy);
+  std::string err;
+  if (!o.is_valid(&err)) throw Error("bench: " + err);
+  return o;
+}
+
+}  // namespace
+
+void register_bench(CLI::App& app, Context& ctx) {
+  auto* bench = app.add_subcommand("bench", "Benchmarks: time and the error it costs");
+  bench->require_subcommand(1);
+
+  // ---- bench closure ----------------------------------------------------------------------
+  {
+    auto* cmd = bench->add_subcommand(
+        "closure", "One closure of the default virtual patient, timed, against a reference run");
+    cmd->footer(
+        "Example:\n  mvtwin bench closure --json closure.json\n"
+        "The run uses the paper's settings (ures = vres = 30, dt = 0.01 s) unless --set says\n"
+        "otherwise; the reference is a finer, smaller-step run (--ref-set), and error_mean_mm /\n"
+        "error_max_mm are the symmetric point-to-mesh distances between the end surfaces.");
+    auto json_path = std::make_shared<std::string>();
+    auto sets = std::make_shared<std::vector<std::string>>();
+    auto ref_sets = std::make_shared<std::vector<std::string>>(
+        std::vector<std::string>{"ures=40", "vres=40", "dt=0.0025"});
+    auto seed = std::make_shared<unsigned>(1);
+    cmd->add_option("--json", *json_path, "write the figures here");
+    cmd->add_option("--set", *sets, "name=value for the timed run (repeatable)");
+    cmd->add_option("--ref-set", *ref_sets, "name=value for the reference run")
+        ->default_str("ures=40 vres=40 dt=0.0025");
+    cmd->add_option("--seed", *seed, "virtual patient")->default_val(1);
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        const Patient p = make_virtual_patient(*seed);
+        const forward::ClosureOptions o = with_settings({}, *sets);
+        forward::ClosureOptions ro = with_settings({}, *ref_sets);
+        std::cout << "timed run ..." << std::endl;
+        const Run a = run(p, o);
+        std::cout << a.result.summary.brief_report() << "\n";
+        std::cout << "reference run (" << ro.model.ures << " x " << ro.model.vres << ", dt "
+                  << ro.dt << " s) ..." << std::endl;
+        const Run ref = run(p, ro);
+        std::cout << ref.result.summary.brief_report() << "\n";
+        const DistanceStats e = end_error(a, ref);
+        json j = summary_json(a);
+        j["error_mean_mm"] = e.mean;
+        j["error_max_mm"] = e.max;
+        j["reference"] = summary_json(ref);
+        j["reference_settings"] = *ref_sets;
+        j["settings"] = forward::describe_options(o);
+        j["patient_seed"] = *seed;
+        j["synthetic"] = true;
+        j["provenance"] = provenance(ctx);
+        std::cout << "wall_s " << a.wall_s << "  steps " << a.result.summary.steps << "  dofs "
+                  << a.result.summary.dofs << "  tets " << a.result.summary.elements
+                  << "  assembly_s " << a.result.summary.assembly_s << "  solve_s "
+                  << a.result.summary.solve_s << "  contact_s " << a.result.summary.contact_s
+                  << "\nerror_mean_mm " << e.mean << "  error_max_mm " << e.max
+                  << " (against the reference, " << ref.wall_s << " s)\n";
+        write_json(*json_path, j);
+        return 0;
+      };
+    });
+  }
+
+  // ---- bench accuracy ---------------------------------------------------------------------
+  {
+    auto* cmd = bench->add_subcommand(
+        "accuracy", "Time against error over resolution, layers and time step");
+    cmd->footer(
+        "Example:\n  mvtwin bench accuracy --json accuracy.json\n"
+        "One factor at a time around the default (ures = vres = 30, 1 layer, dt = 0.01 s):\n"
+        "ures in {20, 30, 40, 50}, vres in {10, 20, 30}, layers in {1, 2, 3}, dt in {0.1, 0.05,\n"
+        "0.01, 0.001}; every run is compared with the finest run of its series.\n"
+        "--full runs the whole grid instead (hours).");
+    auto json_path = std::make_shared<std::string>();
+    auto seed = std::make_shared<unsigned>(1);
+    auto full = std::make_shared<bool>(false);
+    auto base_sets = std::make_shared<std::vector<std::string>>();
+    cmd->add_option("--json", *json_path, "write the figures here");
+    cmd->add_option("--seed", *seed, "virtual patient")->default_val(1);
+    cmd->add_option("--set", *base_sets, "name=value applied to every run");
+    cmd->add_flag("--full", *full, "the full grid, not one factor at a time");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        const Patient p = make_virtual_patient(*seed);
+        const forward::ClosureOptions base = with_settings({}, *base_sets);
+        struct Series {
+          std::string factor;
+          std::vector<std::string> values;
+        };
+        std::vector<Series> series = {{"ures", {"20", "30", "40", "50"}},
+                                      {"vres", {"10", "20", "30"}},
+                                      {"layers", {"1", "2", "3"}},
+                                      {"dt", {"0.1", "0.05", "0.01", "0.001"}}};
+        json rows = json::array();
+        std::cout << "factor  value   wall_s   steps    dofs  error_mean_mm  error_max_mm  status\n";
+        auto one = [&](const std::vector<std::string>& sets) {
+          return run(p, with_settings(base, sets));
+        };
+        if (*full) {
+          std::vector<std::vector<std::string>> combos;
+          for (const auto& u : series[0].values)
+            for (const auto& v : series[1].values)
+              for (const auto& l : series[2].values)
+                for (const auto& d : series[3].values)
+                  combos.push_back({"ures=" + u, "vres=" + v, "layers=" + l, "dt=" + d});
+          std::vector<Run> runs;
+          for (const auto& c : combos) {
+            runs.push_back(one(c));
+            std::cout << "." << std::flush;
+          }
+          const Run& ref = runs.back();  // finest: last of every list
+          for (size_t i = 0; i < runs.size(); ++i) {
+            const DistanceStats e = end_error(runs[i], ref);
+            json r = summary_json(runs[i]);
+            r["settings"] = combos[i];
+            r["error_mean_mm"] = e.mean;
+            r["error_max_mm"] = e.max;
+            rows.push_back(r);
+          }
+          std::cout << "\n";
+        } else {
+          for (const Series& s : series) {
+            std::vector<Run> runs;
+            for (const auto& v : s.values) runs.push_back(one({s.factor + "=" + v}));
+            const Run& ref = runs.back();
+            for (size_t i = 0; i < runs.size(); ++i) {
+              const bool ok = runs[i].result.summary.status == forward::ClosureStatus::kConverged;
+              const DistanceStats e = end_error(runs[i], ref);
+              json r = summary_json(runs[i]);
+              r["factor"] = s.factor;
+              r["value"] = s.values[i];
+              r["error_mean_mm"] = e.mean;
+              r["error_max_mm"] = e.max;
+              rows.push_back(r);
+              char line[200];
+              std::snprintf(line, sizeof line, "%-7s %-6s %7.2f %7d %7d %14.3f %13.3f  %s\n",
+                            s.factor.c_str(), s.values[i].c_str(), runs[i].wall_s,
+                            runs[i].result.summary.steps, runs[i].result.summary.dofs, e.mean,
+                            e.max, ok ? "converged" : runs[i].result.summary.reason.c_str());
+              std::cout << line << std::flush;
+            }
+          }
+        }
+        json j{{"runs", rows},
+               {"patient_seed", *seed},
+               {"synthetic", true},
+               {"base_settings", forward::describe_options(base)},
+               {"reference", "the last (finest) value of each series"},
+               {"provenance", provenance(ctx)}};
+        write_json(*json_path, j);
+        return 0;
+      };
+    });
+  }
+
+  // ---- bench stability --------------------------------------------------------------------
+  {
+    auto* cmd = bench->add_subcommand("stability", "Randomized stress test of the simulator");
+    cmd->footer(
+        "Example:\n  mvtwin bench stability --runs 1000 --json stability.json\n"
+        "Each run draws a virtual patient and: rest-length factors 0.5-1.5, chordae stiffness\n"
+        "x0.2-5, leaflet moduli x0.2-5, peak pressure 0-200 mmHg, dt 0.001-0.1 s, and in a\n"
+        "third of the runs noisy (0.3-1 mm) or degenerate (collapsed columns) anatomy.\n"
+        "Counts: converged, clean failures (a status with a reason, or a named input error),\n"
+        "crashes (any other exception) and non-finite outputs. Coarse models (--set) keep it\n"
+        "fast.");
+    auto json_path = std::make_shared<std::string>();
+    auto runs = std::make_shared<int>(50);
+    auto seed = std::make_shared<unsigned>(7);
+    auto sets = std::make_shared<std::vector<std::string>>(
+        std::vector<std::string>{"ures=20", "vres=10"});
+    cmd->add_option("--json", *json_path, "write the figures here");
+    cmd->add_option("--runs", *runs, "number of randomized runs")->default_val(50);
+    cmd->add_option("--seed", *seed, "random seed")->default_val(7);
+    cmd->add_option("--set", *sets, "name=value for every run")->default_str("ures=20 vres=10");
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        Rng rng(*seed);
+        int converged = 0, clean = 0, crashes = 0, nonfinite = 0;
+        json cases = json::array();
+        const forward::ClosureOptions base = with_settings({}, *sets);
+        for (int i = 0; i < *runs; ++i) {
+          const std::uint64_t ps = 5000 + static_cast<std::uint64_t>(rng.uniform_int(0, 1000000));
+          Patient p = make_virtual_patient(ps);
+          ValveParameters par = p.truth->parameters;
+          for (double& f : par.restlength_factor) f = rng.uniform(0.5, 1.5);
+          par.marginal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+          par.basal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+          par.al_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+          par.pl_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+          par.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(0.0, 200.0));
+          forward::ClosureOptions o = base;
+          o.dt = std::exp(rng.uniform(std::log(0.001), std::log(0.1)));
+          std::string anatomy = "clean";
+          const double a = rng.uniform();
+          ValveFrame& ed = p.sequence.frames[p.sequence.end_diastole];
+          if (a < 0.17) {
+            anatomy = "noisy";
+            const double sd = rng.uniform(0.3, 1.0);
+            for (int f = 0; f < p.sequence.num_frames(); ++f) {
+              if (!p.sequence.frames[f].la_surface) continue;
+              auto& P = p.sequence.frames[f].la_surface->points();
+              for (Eigen::Index k = p.sequence.ures; k < P.rows(); ++k)
+                for (int c = 0; c < 3; ++c) P(k, c) += rng.normal(0.0, sd);
+            }
+          } else if (a < 0.33) {
+            anatomy = "degenerate";
+            // Collapse two neighbouring columns onto one another.
+            auto& P = ed.la_surface->points();
+            const int U = ed.la_surface->ures(), u = rng.uniform_int(1, U - 2);
+            for (int v = 1; v < ed.la_surface->vres(); ++v) P.row(v * U + u + 1) = P.row(v * U + u);
+          }
+          std::string outcome, reason;
+          try {
+            const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
+            bool finite = r.positions.allFinite();
+            for (const auto& s : r.samples) finite = finite && s.la_surface.points().allFinite();
+            if (!finite) {
+              ++nonfinite;
+              outcome = "nonfinite_output";
+            } else if (r.summary.status == forward::ClosureStatus::kConverged) {
+              ++converged;
+              outcome = "converged";
+            } else {
+              ++clean;
+              outcome = "clean_failure";
+              reason = r.summary.reason;
+            }
+          } catch (const Error& e) {
+            ++clean;
+            outcome = "clean_failure";
+            reason = e.what();
+          } catch (const std::exception& e) {
+            ++crashes;
+            outcome = "crash";
+            reason = e.what();
+          }
+          cases.push_back({{"patient_seed", ps},
+                           {"dt", o.dt},
+                           {"peak_pressure_mmhg", units::mpa_to_mmhg(par.peak_pressure_mpa)},
+                           {"anatomy", anatomy},
+                           {"outcome", outcome},
+                           {"reason", reason}});
+          std::cout << "\r" << (i + 1) << "/" << *runs << ": " << converged << " converged, "
+                    << clean << " clean failures, " << crashes << " crashes, " << nonfinite
+                    << " non-finite" << std::flush;
+        }
+        std::cout << "\n";
+        json j{{"runs", *runs},
+               {"converged", converged},
+               {"clean_failures", clean},
+               {"crashes", crashes},
+               {"nonfinite_outputs", nonfinite},
+               {"seed", *seed},
+               {"settings", *sets},
+               {"cases", cases},
+               {"provenance", provenance(ctx)}};
+        write_json(*json_path, j);
+        return crashes == 0 && nonfinite == 0 ? 0 : 5;
+      };
+    });
+  }
+}
+
+}  // namespace mvtwin::tools
