@@ -278,8 +278,15 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     contact.emplace(SelfContact::valve_surface(model), co);
   }
   const AtrialSampler sampler = make_atrial_sampler(model, U, V);
-  auto record = [&](double tau, const Eigen::VectorXd& x) {
+  auto record = [&](double tau, const Eigen::VectorXd& x, const Eigen::VectorXd& vel) {
     ClosureSample s;
+    s.kinetic_energy = 0.5 * vel.dot(mass_dof.cwiseProduct(vel));
+    {
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(ndof);
+      double e = 0.0;
+      if (body.accumulate(x, &g, nullptr, opt.tangent, &e) < 0) s.elastic_energy = e;
+      else s.elastic_energy = NAN;
+    }
     s.time_s = tau;
     s.observed_time_s = motion.observed_time(tau);
     s.la_surface = sample_atrial(sampler, x);
@@ -309,6 +316,16 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   std::vector<Eigen::Triplet<double>> trip_c;
 
   Eigen::VectorXd x = X, v = Eigen::VectorXd::Zero(ndof);
+  if (opt.initial_velocity.size() > 0) {
+    if (opt.initial_velocity.size() != ndof || !opt.initial_velocity.allFinite()) {
+      throw Error("closure options: initial_velocity needs " + std::to_string(ndof) +
+                  " finite values (3 per node)");
+    }
+    v = opt.initial_velocity;
+    for (int i = 0; i < ndof; ++i) {
+      if (fixed[i]) v[i] = 0.0;
+    }
+  }
   StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations});
   std::vector<Eigen::Triplet<double>> trip_el, trip_all;
 
@@ -477,7 +494,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
 
-  record(0.0, x);
+  record(0.0, x, v);
   double tau = 0.0;
   int step_index = 0;
   while (tau < T - 1e-12) {
@@ -491,7 +508,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         sum.reason = why + " at t = " + std::to_string(tau) + " s (after " +
                      std::to_string(halvings) + " step halvings)";
         result.positions = x;
-        record(tau, x);
+        record(tau, x, v);
         finish();
         return result;
       }
@@ -507,9 +524,9 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     ++sum.steps;
     ++step_index;
     if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12)
-      record(tau, x);
+      record(tau, x, v);
   }
-  record(tau, x);
+  record(tau, x, v);
   result.positions = x;
   sum.status = ClosureStatus::kConverged;
   finish();

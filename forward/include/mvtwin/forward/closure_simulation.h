@@ -48,6 +48,9 @@ struct ClosureOptions {
   bool contact_limit_motion = false;
   /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
   std::vector<int> ruptured_marginal_chordae;
+  /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
+  /// nodes start at rest whatever is given.
+  Eigen::VectorXd initial_velocity;
   /// Record the atrial surface every n steps (0: only the end).
   int record_every = 0;
   /// A failed step (inverted element, non-finite value, solver failure) is retried with half
@@ -92,6 +95,8 @@ struct ClosureSample {
   int orifice_components = 0;
   /// Smallest signed distance of a contact pair (negative: through a surface), mm.
   double min_contact_distance_mm = 0;
+  /// Kinetic and elastic (leaflet) energy, N mm.
+  double kinetic_energy = 0, elastic_energy = 0;
 };
 
 struct ClosureResult {
