@@ -24,6 +24,7 @@
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/closure_simulation.h"
+#include "mvtwin/forward/virtual_closure.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/forward/valve_model.h"
 
@@ -175,7 +176,9 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto* cmd = app.add_subcommand("phantom", "Make one virtual (synthetic) patient");
     cmd->footer(
         "Example:\n  mvtwin phantom --seed 1 --out patient.h5\n  mvtwin phantom --seed 7 "
-        "--pathology functional_mr --out fmr.h5");
+        "--pathology functional_mr --out fmr.h5\n"
+        "  mvtwin phantom --seed 1 --out p.h5 --simulate-closure   (observed closing frames: a\n"
+        "  fine simulation with the hidden parameters plus noise; slow, see --closure-set)");
     auto seed = std::make_shared<std::uint64_t>(1);
     auto out = std::make_shared<std::string>();
     auto pathology = std::make_shared<std::string>();
@@ -188,13 +191,32 @@ void register_commands(CLI::App& app, Context& ctx) {
                     "functional_mr | stiff_leaflets (default: drawn)");
     add_grid_options(cmd, opts->ures, opts->vres);
     cmd->add_flag("--force", *force, "replace an existing file");
+    auto closure = std::make_shared<bool>(false);
+    auto closure_sets = std::make_shared<std::vector<std::string>>();
+    auto noise = std::make_shared<double>(0.5);
+    cmd->add_flag("--simulate-closure", *closure,
+                  "fill the closing frames by a fine simulation with the hidden parameters");
+    cmd->add_option("--closure-set", *closure_sets,
+                    "name=value for that simulation (default: ures = vres = 40, 2 layers, "
+                    "dt = 0.0025 s, stiff contact)");
+    cmd->add_option("--noise", *noise, "detection-like noise on the simulated surfaces, mm")
+        ->default_val(0.5);
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
         refuse_overwrite(*out, *force);
         VirtualPatientOptions o = *opts;
         if (!pathology->empty()) o.pathology = pathology_from_name(*pathology);
         o.command = ctx.command_line;
-        const Patient p = make_virtual_patient(*seed, o);
+        Patient p = make_virtual_patient(*seed, o);
+        if (*closure) {
+          forward::VirtualClosureOptions vo;
+          vo.noise_mm = *noise;
+          ValveParameters unused;
+          for (const auto& a : *closure_sets) forward::apply_setting(a, &vo.simulation, &unused);
+          std::cout << "simulating the closing frames of " << p.id << " ..." << std::endl;
+          forward::simulate_observed_closure(&p, vo);
+          std::cout << p.truth->closed_frames << "\n";
+        }
         write_patient(*out, p);
         std::cout << "wrote " << *out << ": virtual patient " << p.id << " ("
                   << pathology_name(p.truth->pathology) << ", " << p.sequence.num_frames()

@@ -1,0 +1,31 @@
+#pragma once
+#include <string>
+
+#include "mvtwin/core/patient.h"
+#include "mvtwin/forward/closure_simulation.h"
+
+namespace mvtwin::forward {
+
+/// How the closing frames of a virtual patient are observed: simulated with its hidden
+/// parameters by a model finer than the calibration model, then sampled like a detector would
+/// see them (SPEC Sec. 8; the calibration model must never be the model that made its
+/// observation).
+struct VirtualClosureOptions {
+  ClosureOptions simulation = fine_default();
+  /// Detection-like noise: a smooth Gaussian field displacing the grid points (not the
+  /// annulus) along the surface normal, mm (SD), drawn from the patient's seed.
+  double noise_mm = 0.5;
+
+  /// A finer model than the calibration default (ures = vres = 30, 1 layer, dt = 0.01 s):
+  /// ures = vres = 40, 2 layers, dt = 2.5e-3 s, stiff contact with Newton iterations.
+  static ClosureOptions fine_default();
+};
+
+/// Simulates the closure of a synthetic patient with its hidden parameters and fills the
+/// leaflet surfaces of the frames after end-diastole up to the first closed frame (marked
+/// observed; later systolic frames stay unobserved), with noise. Records how in
+/// truth->closed_frames. Throws mvtwin::Error for a patient without virtual truth, and when the
+/// simulation fails (the patient file is then left as it was).
+void simulate_observed_closure(Patient* patient, const VirtualClosureOptions& options = {});
+
+}  // namespace mvtwin::forward

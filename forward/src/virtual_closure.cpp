@@ -1,0 +1,103 @@
+#include "mvtwin/forward/virtual_closure.h"
+
+#include <cmath>
+#include <sstream>
+
+#include <Eigen/Geometry>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/rng.h"
+
+namespace mvtwin::forward {
+
+ClosureOptions VirtualClosureOptions::fine_default() {
+  ClosureOptions o;
+  o.model.ures = 40;
+  o.model.vres = 40;
+  o.model.layers = 2;
+  o.dt = 2.5e-3;
+  o.newton_iterations = 4;
+  o.newton_tolerance = 1e-3;
+  o.contact_stiffness_factor = 20;
+  o.solver = LinearSolver::kReusedFactorPcg;
+  return o;
+}
+
+void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
+  if (!p->synthetic || !p->truth) {
+    throw Error("observed closure: patient '" + p->id + "' has no virtual ground truth");
+  }
+  if (!(opt.noise_mm >= 0 && opt.noise_mm < 5)) {
+    throw Error("observed closure: noise must be in [0, 5) mm");
+  }
+  ValveSequence& seq = p->sequence;
+  ClosureOptions o = opt.simulation;
+  o.record_every = 1;
+  o.ruptured_marginal_chordae = p->truth->ruptured_marginal_chordae;
+  const ClosureResult r = simulate_closure(seq, p->truth->parameters, o);
+  if (r.summary.status != ClosureStatus::kConverged) {
+    throw Error("observed closure of '" + p->id + "' failed: " + r.summary.reason);
+  }
+  Rng rng(p->provenance.seed * 7919 + 17);
+  for (int f = seq.end_diastole + 1; f <= seq.first_closed; ++f) {
+    const double t = seq.frames[f].time_s;
+    const ClosureSample* best = &r.samples.front();
+    for (const ClosureSample& s : r.samples) {
+      if (std::abs(s.observed_time_s - t) < std::abs(best->observed_time_s - t)) best = &s;
+    }
+    LeafletGrid g = best->la_surface.resampled(seq.ures, seq.vres);
+    // The annulus row is the frame's annulus (observed separately, exactly).
+    g.points().topRows(seq.ures) = seq.frames[f].annulus;
+    if (opt.noise_mm > 0) {
+      const TriangleMesh tri = g.triangulate();
+      Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> n =
+          Eigen::MatrixXd::Zero(g.points().rows(), 3);
+      for (Eigen::Index k = 0; k < tri.F.rows(); ++k) {
+        const Eigen::Vector3d a = tri.V.row(tri.F(k, 0)), b = tri.V.row(tri.F(k, 1)),
+                              c = tri.V.row(tri.F(k, 2));
+        const Eigen::Vector3d fn = (b - a).cross(c - a);
+        for (int j = 0; j < 3; ++j) n.row(tri.F(k, j)) += fn.transpose();
+      }
+      // Smooth noise, like a detector's: white noise smoothed over the grid (8 passes of
+      // 4-neighbour averaging, u periodic), rescaled to the requested SD.
+      const int U = seq.ures, V = seq.vres;
+      Eigen::VectorXd w(U * V);
+      for (int i = 0; i < U * V; ++i) w[i] = rng.normal();
+      for (int pass = 0; pass < 8; ++pass) {
+        Eigen::VectorXd s = w;
+        for (int v = 0; v < V; ++v) {
+          for (int u = 0; u < U; ++u) {
+            double sum = w[v * U + u], cnt = 1;
+            for (int du : {-1, 1}) {
+              sum += w[v * U + (u + du + U) % U];
+              ++cnt;
+            }
+            if (v > 0) sum += w[(v - 1) * U + u], ++cnt;
+            if (v + 1 < V) sum += w[(v + 1) * U + u], ++cnt;
+            s[v * U + u] = sum / cnt;
+          }
+        }
+        w = s;
+      }
+      const double sd = std::sqrt((w.array() - w.mean()).square().mean());
+      if (sd > 0) w = (w.array() - w.mean()) / sd * opt.noise_mm;
+      for (Eigen::Index i = U; i < g.points().rows(); ++i) {
+        const double len = n.row(i).norm();
+        if (len > 0) g.points().row(i) += w[i] * n.row(i) / len;
+      }
+    }
+    seq.frames[f].la_surface = std::move(g);
+  }
+  std::ostringstream os;
+  os << "frames " << seq.end_diastole + 1 << ".." << seq.first_closed
+     << " simulated with the hidden parameters by mvtwin (ures " << o.model.ures << ", vres "
+     << o.model.vres << ", " << o.model.layers << " layers, dt " << o.dt << " s, Newton "
+     << o.newton_iterations << ", contact factor " << o.contact_stiffness_factor
+     << "), nearest recorded state to each frame time, plus " << opt.noise_mm
+     << " mm Gaussian noise along the normals; later frames unobserved; simulation: "
+     << r.summary.brief_report();
+  p->truth->closed_frames = os.str();
+  seq.validate(("observed closure of '" + p->id + "'").c_str());
+}
+
+}  // namespace mvtwin::forward
