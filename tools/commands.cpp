@@ -395,7 +395,8 @@ void register_commands(CLI::App& app, Context& ctx) {
         "Examples:\n  mvtwin simulate patient.h5 --out closed.h5 --vtk sim/\n"
         "  mvtwin simulate patient.h5 --out closed.h5 --set dt=0.005 --set contact=off\n"
         "  mvtwin simulate patient.h5 --out closed.h5 --set newton_iterations=4 "
-        "--set contact_stiffness_factor=20 --solver reused-factor-pcg   (no interpenetration)\n"
+        "--set contact_stiffness_factor=20 --solver reused-factor-pcg   (stiff contact: free edges\n"
+        "  do not sink into the other leaflet; slower)\n"
         "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
         "Exit status 4 when the simulation fails (the result file says why).");
     auto file = std::make_shared<std::string>();

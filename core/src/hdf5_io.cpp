@@ -283,6 +283,24 @@ void Location::attr(const std::string& name, const std::vector<double>& v,
   write_attr(*this, obj.get(), name, H5T_NATIVE_DOUBLE, space.get(), v.data());
 }
 
+std::vector<std::string> Location::member_names() const {
+  std::vector<std::string> names;
+  Handle plist(H5Gget_create_plist(id()), H5Pclose);
+  unsigned flags = 0;
+  if (plist.valid()) H5Pget_link_creation_order(plist.get(), &flags);
+  const H5_index_t index = (flags & H5P_CRT_ORDER_TRACKED) ? H5_INDEX_CRT_ORDER : H5_INDEX_NAME;
+  hsize_t idx = 0;
+  const herr_t rc = H5Literate(
+      id(), index, H5_ITER_INC, &idx,
+      [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+        static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+        return 0;
+      },
+      &names);
+  if (rc < 0) fail("", "cannot list the members");
+  return names;
+}
+
 bool Location::has_attr(const std::string& name) const { return H5Aexists(id(), name.c_str()) > 0; }
 
 namespace {

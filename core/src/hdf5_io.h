@@ -50,6 +50,8 @@ class Location {
   Location create_group(const std::string& name, bool track_order = false) const;
   Location open_group(const std::string& name) const;
   bool exists(const std::string& name) const;
+  /// Names of the members of this group, in creation order when the group tracks it.
+  std::vector<std::string> member_names() const;
 
   // Datasets: row-major data with explicit dimensions.
   void write(const std::string& name, const std::vector<double>& data,

@@ -135,12 +135,7 @@ SimulationRecord read_simulation_file(const std::filesystem::path& path) {
   });
   {
     const h5::Location sum = root.open_group("summary");
-    for (const char* k : {"steps", "halvings", "newton_iterations", "dofs", "elements", "wall_s",
-                          "assembly_s", "solve_s", "contact_s", "other_s", "contacts",
-                          "max_contacts", "contact_searches", "min_contact_distance_mm",
-                          "factorizations", "pcg_iterations", "final_update_norm"}) {
-      if (sum.exists(k)) r.summary.emplace_back(k, sum.read_scalar(k));
-    }
+    for (const std::string& k : sum.member_names()) r.summary.emplace_back(k, sum.read_scalar(k));
   }
   const h5::Location ts = root.open_group("samples");
   std::vector<hsize_t> d;

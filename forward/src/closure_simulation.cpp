@@ -6,11 +6,9 @@
 #include <optional>
 #include <sstream>
 
-#include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
-#include <Eigen/SparseCholesky>
 
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/closure_measures.h"
@@ -487,7 +485,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.pcg_iterations = linear.stats().pcg_iterations;
     if (contact) {
       sum.contact_searches = contact->searches();
-      sum.contact_reused = contact->skipped();
+      sum.contact_reused = contact->reused();
       sum.min_contact_distance_mm = contact->min_distance();
     }
     sum.wall_s = seconds_since(t_start);

@@ -198,7 +198,7 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
     fresh = moved < 0.5 * opt_.margin_mm;
   }
   if (fresh) {
-    ++skipped_;
+    ++reused_;
   } else {
     full_search(x);
   }

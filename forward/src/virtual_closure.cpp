@@ -1,5 +1,6 @@
 #include "mvtwin/forward/virtual_closure.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -32,7 +33,10 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   }
   ValveSequence& seq = p->sequence;
   ClosureOptions o = opt.simulation;
-  o.record_every = 1;
+  // Record often enough to find each frame's state (every 0.02 s of simulated time, i.e.
+  // 2 ms of the image clock at the default stretch), not every step: each record samples the
+  // surface, measures the orifice and evaluates the elastic energy.
+  o.record_every = std::max(1, static_cast<int>(std::lround(0.02 / o.dt)));
   o.ruptured_marginal_chordae = p->truth->ruptured_marginal_chordae;
   const ClosureResult r = simulate_closure(seq, p->truth->parameters, o);
   if (r.summary.status != ClosureStatus::kConverged) {

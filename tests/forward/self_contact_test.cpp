@@ -107,7 +107,7 @@ TEST(SelfContact, FarPlatesSkipTheSearchUntilTheyApproach) {
   Eigen::VectorXd x = p.x;
   for (int i = 25; i < 50; ++i) x[3 * i + 2] -= 0.5;
   EXPECT_EQ(c.detect(x), 0);
-  EXPECT_EQ(c.skipped(), 1);
+  EXPECT_EQ(c.reused(), 1);
   // The upper plate comes down to 0.4 mm: searched again and found.
   for (int i = 25; i < 50; ++i) x[3 * i + 2] = 0.4;
   EXPECT_GT(c.detect(x), 0);

@@ -83,7 +83,7 @@ class SelfContact {
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
   int searches() const { return searches_; }
-  int skipped() const { return skipped_; }
+  int reused() const { return reused_; }
   /// Smallest distance among the candidates at the last detection (infinity if none).
   double min_distance() const { return min_distance_; }
 
@@ -100,7 +100,7 @@ class SelfContact {
   };
   std::vector<Candidate> candidates_;            // by vertex
   Eigen::VectorXd x_search_;                     // positions at the last full search
-  int searches_ = 0, skipped_ = 0;
+  int searches_ = 0, reused_ = 0;
   double min_distance_ = 0.0;
 };
 
