@@ -388,15 +388,15 @@ void register_commands(CLI::App& app, Context& ctx) {
       };
     });
   }
-  // ---- simulate (work in progress: no contact, no result file yet) -----------------------------
+  // ---- simulate -------------------------------------------------------------------------------
   {
     auto* cmd = app.add_subcommand("simulate", "Simulate the closure of a patient");
     cmd->footer(
         "Examples:\n  mvtwin simulate patient.h5 --out closed.h5 --vtk sim/\n"
         "  mvtwin simulate patient.h5 --out closed.h5 --set dt=0.005 --set contact=off\n"
-        "  mvtwin simulate patient.h5 --out closed.h5 --set newton_iterations=4 "
-        "--set contact_stiffness_factor=20 --solver reused-factor-pcg   (stiff contact: free edges\n"
-        "  do not sink into the other leaflet; slower)\n"
+        "  mvtwin simulate patient.h5 --out closed.h5 --solver cholmod-supernodal --set "
+        "pcg_tolerance=1e-8   (a\n  factorization every step, linear systems solved to 1e-8: "
+        "a reference run)\n"
         "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
         "Exit status 4 when the simulation fails (the result file says why).");
     auto file = std::make_shared<std::string>();
@@ -413,10 +413,11 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--dt", opts->dt, "time step, s")->default_val(0.01);
     cmd->add_option("--newton", *newton, "Newton iterations per step (1 = one linearization)")
         ->default_val(1);
-    auto solver = std::make_shared<std::string>("cholmod-supernodal");
+    const std::string default_solver = forward::name(forward::ClosureOptions{}.solver);
+    auto solver = std::make_shared<std::string>(default_solver);
     cmd->add_option("--solver", *solver,
-                    "cholmod-supernodal | cholmod-simplicial | eigen-ldlt | reused-factor-pcg")
-        ->default_val("cholmod-supernodal");
+                    "reused-factor-pcg | cholmod-supernodal | cholmod-simplicial | eigen-ldlt")
+        ->default_val(default_solver);
     auto no_contact = std::make_shared<bool>(false);
     cmd->add_flag("--no-contact", *no_contact, "switch self-contact off");
     auto sets = std::make_shared<std::vector<std::string>>();
@@ -485,20 +486,26 @@ void register_commands(CLI::App& app, Context& ctx) {
   // ---- distance --------------------------------------------------------------------------------
   {
     auto* cmd =
-        app.add_subcommand("distance", "Point-to-mesh distance between two patients' LA surfaces");
+        app.add_subcommand("distance", "Point-to-mesh distance between two LA surfaces");
     cmd->footer(
-        "Example:\n  mvtwin distance 008_gt.h5 008_pred.h5\n"
-        "Frames default to the first closed frame of each (else frame 0); distances go from the\n"
-        "vertices of one surface to the triangles of the other, both ways.");
+        "Example:\n  mvtwin distance 008_gt.h5 008_pred.h5\n  mvtwin distance closed.h5 patient.h5\n"
+        "A and B are patient files or simulation results (their end surface). Patient frames\n"
+        "default to the first closed frame (else frame 0); distances go from the vertices of\n"
+        "one surface to the triangles of the other, both ways.");
     auto a = std::make_shared<std::string>(), b = std::make_shared<std::string>();
     auto fa = std::make_shared<int>(-1), fb = std::make_shared<int>(-1);
-    cmd->add_option("A", *a, "first patient file")->required();
-    cmd->add_option("B", *b, "second patient file")->required();
+    cmd->add_option("A", *a, "first patient or simulation file")->required();
+    cmd->add_option("B", *b, "second patient or simulation file")->required();
     cmd->add_option("--frame-a", *fa, "frame of A (default: first closed, else 0)");
     cmd->add_option("--frame-b", *fb, "frame of B (default: first closed, else 0)");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
         auto surface = [](const std::string& file, int frame) {
+          if (mvtwin_file_format(file) == "mvtwin-simulation") {
+            const SimulationRecord r = read_simulation_file(file);
+            if (r.la_surface.empty()) throw Error(file + ": the simulation recorded no surface");
+            return r.la_surface.back().triangulate();
+          }
           const Patient p = read_patient(file, false);
           const ValveSequence& s = p.sequence;
           if (frame < 0) frame = s.first_closed >= 0 ? s.first_closed : 0;

@@ -81,6 +81,7 @@ const std::map<std::string, Field>& fields() {
     dbl("contact_alarm_mm", [](ClosureOptions& o) -> double& { return o.contact_alarm_mm; });
     dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact_distance_mm; });
     dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact_friction; });
+    dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact_wall_factor; });
     dbl("contact_stiffness_factor",
         [](ClosureOptions& o) -> double& { return o.contact_stiffness_factor; });
     dbl("al_thickness_mm", [](ClosureOptions& o) -> double& { return o.model.al_thickness_mm; });
@@ -91,8 +92,12 @@ const std::map<std::string, Field>& fields() {
     integer("marginal_chordae", [](ClosureOptions& o) -> int& { return o.model.marginal_chordae; });
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
     integer("pcg_max_iterations", [](ClosureOptions& o) -> int& { return o.pcg_max_iterations; });
+    integer("refactor_iterations",
+            [](ClosureOptions& o) -> int& { return o.refactor_iterations; });
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
+    boolean("rotated_preconditioner",
+            [](ClosureOptions& o) -> bool& { return o.rotated_preconditioner; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
     boolean("contact_limit_motion",
             [](ClosureOptions& o) -> bool& { return o.contact_limit_motion; });
@@ -117,18 +122,6 @@ const std::map<std::string, Field>& fields() {
                      }
                    },
                    [](const ClosureOptions& o) { return std::string(name(o.solver)); }};
-    m["tangent"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
-                      if (v == "warped") {
-                        o.tangent = Tangent::kWarped;
-                      } else if (v == "consistent") {
-                        o.tangent = Tangent::kConsistent;
-                      } else {
-                        throw Error("--set " + k + ": '" + v + "' is not warped or consistent");
-                      }
-                    },
-                    [](const ClosureOptions& o) {
-                      return std::string(o.tangent == Tangent::kWarped ? "warped" : "consistent");
-                    }};
     return m;
   }();
   return f;

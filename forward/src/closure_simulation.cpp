@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -16,7 +17,9 @@
 #include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/interpenetration.h"
 #include "mvtwin/forward/self_contact.h"
+#include "mvtwin/forward/symmetric_block_matrix.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -116,6 +119,9 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("Rayleigh coefficients must be >= 0");
   if (!(pcg_tolerance > 0 && pcg_tolerance < 1) || pcg_max_iterations < 1)
     return bad("pcg_tolerance must be in (0, 1) and pcg_max_iterations >= 1");
+  if (refactor_iterations < 1) return bad("refactor_iterations must be >= 1");
+  if (!(contact_wall_factor >= 0 && contact_wall_factor <= 1e4))
+    return bad("contact_wall_factor must be in [0, 1e4]");
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
@@ -140,10 +146,12 @@ std::string ClosureSummary::brief_report() const {
      << " Newton iterations), " << dofs << " dofs, " << elements << " elements; " << wall_s
      << " s (assembly " << assembly_s << ", solve " << solve_s << ", contact " << contact_s
      << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
-     << analyses << " analyses, " << pcg_iterations << " PCG iterations; contact: " << contacts
+     << analyses << " analyses, " << pcg_iterations << " PCG iterations, " << unconverged_solves
+     << " unconverged; contact: " << contacts
      << " pairs at the end (max " << max_contacts << ", closest " << min_contact_distance_mm
      << " mm), " << contact_searches << " searches, "
-     << contact_reused << " reused the candidate list";
+     << contact_reused << " reused the candidate list; " << interpenetrating_nodes << " of "
+     << interpenetration_checked << " surface nodes inside the other leaflet";
   return os.str();
 }
 
@@ -270,6 +278,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     co.alarm_mm = opt.contact_alarm_mm;
     co.contact_mm = opt.contact_distance_mm;
     co.friction = opt.contact_friction;
+    co.wall_factor = opt.contact_wall_factor;
     co.stiffness_per_area = opt.contact_stiffness_factor *
                             std::max(params.peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
                             (opt.contact_alarm_mm - opt.contact_distance_mm);
@@ -280,10 +289,11 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     ClosureSample s;
     s.kinetic_energy = 0.5 * vel.dot(mass_dof.cwiseProduct(vel));
     {
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(ndof);
+      Eigen::VectorXd g;
+      ElementRotations r;
       double e = 0.0;
-      if (body.accumulate(x, &g, nullptr, opt.tangent, &e) < 0) s.elastic_energy = e;
-      else s.elastic_energy = NAN;
+      s.elastic_energy =
+          body.gradient(x, &g, &r, &e) < 0 ? e : std::numeric_limits<double>::quiet_NaN();
     }
     s.time_s = tau;
     s.observed_time_s = motion.observed_time(tau);
@@ -311,8 +321,6 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     result.samples.push_back(std::move(s));
   };
 
-  std::vector<Eigen::Triplet<double>> trip_c;
-
   Eigen::VectorXd x = X, v = Eigen::VectorXd::Zero(ndof);
   if (opt.initial_velocity.size() > 0) {
     if (opt.initial_velocity.size() != ndof || !opt.initial_velocity.allFinite()) {
@@ -324,8 +332,40 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       if (fixed[i]) v[i] = 0.0;
     }
   }
-  StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations});
-  std::vector<Eigen::Triplet<double>> trip_el, trip_all;
+
+  // The step matrix on a fixed pattern: every element, and each chorda's insertion nodes.
+  std::vector<char> node_free(n, 1);
+  for (const Prescribed& pr : prescribed) node_free[pr.node] = 0;
+  std::vector<std::vector<int>> cliques = body.element_cliques();
+  const int first_cable_clique = static_cast<int>(cliques.size());
+  for (const Cable& cb : cables) cliques.push_back(cb.nodes);
+  SymmetricBlockMatrix system(node_free, cliques);
+  if (system.rows() != static_cast<int>(free_dofs.size()))
+    throw Error("closure simulation: internal error (free dofs and system rows differ)");
+  StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations,
+                     opt.refactor_iterations});
+
+  // The linearization of one step: element rotations, chordae tangents at the insertions.
+  ElementRotations rot, rot_at_factor;
+  std::vector<Eigen::Matrix3d> cable_tangent(cables.size());
+  // Rotation of each node's neighbourhood since the last factorization (rotated
+  // preconditioner, StepSolver::System::rotate), computed when first needed in a linearization.
+  std::vector<Eigen::Matrix3d> node_rotation(n);
+  bool node_rotation_current = false;
+  auto update_node_rotation = [&] {
+    for (auto& Q : node_rotation) Q.setZero();
+    const int npe = mesh.nodes_per_element();
+    for (int e = 0; e < mesh.num_elements(); ++e) {
+      const Eigen::Matrix3d D = rot.R[e] * rot_at_factor.R[e].transpose();
+      for (int a = 0; a < npe; ++a) node_rotation[mesh.T(e, a)] += D;
+    }
+    for (auto& Q : node_rotation) {
+      Eigen::Matrix3d R, S;
+      Q = polar_decomposition(Q, &R, &S) ? R : Eigen::Matrix3d::Identity();
+    }
+    node_rotation_current = true;
+  };
+  Eigen::VectorXd p_all = Eigen::VectorXd::Zero(ndof), y_all(ndof);
 
   // One implicit Euler step from (x, v) at tau to tau + h; false with a reason on failure.
   auto step = [&](double tau, double h, Eigen::VectorXd* x_io, Eigen::VectorXd* v_io,
@@ -340,59 +380,95 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     Eigen::VectorXd v1 = v0;
     for (const Prescribed& pr : prescribed)
       v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
+    const double ck = h * opt.rayleigh_stiffness + h * h;  // K's factor in the step matrix
+    const double cm = 1.0 + h * opt.rayleigh_mass;          // M's factor
+    // y = A p over the free dofs, with every coupling (contact included).
+    auto multiply = [&](const Eigen::VectorXd& pf, Eigen::VectorXd* y) {
+      for (size_t i = 0; i < free_dofs.size(); ++i) p_all[free_dofs[i]] = pf[static_cast<Eigen::Index>(i)];
+      y_all.setZero();
+      body.tangent_times(rot, p_all, &y_all);
+      y_all *= ck;
+      for (size_t c = 0; c < cables.size(); ++c) {
+        const Cable& cb = cables[c];
+        const double w = 1.0 / static_cast<double>(cb.nodes.size());
+        Eigen::Vector3d s = Eigen::Vector3d::Zero();
+        for (int k : cb.nodes) s += w * p_all.segment<3>(3 * k);
+        const Eigen::Vector3d t = h * h * w * (cable_tangent[c] * s);
+        for (int k : cb.nodes) y_all.segment<3>(3 * k) += t;
+      }
+      if (contact) contact->multiply(p_all, h * h, h, &y_all);
+      y->resize(pf.size());
+      for (size_t i = 0; i < free_dofs.size(); ++i) {
+        const int d = free_dofs[i];
+        (*y)[static_cast<Eigen::Index>(i)] = y_all[d] + cm * mass_dof[d] * p_all[d];
+      }
+    };
+    // The factorized matrix: the same without the contact couplings (their diagonal blocks
+    // only), assembled only when the solver factorizes.
+    auto lower = [&]() -> const Eigen::SparseMatrix<double>& {
+      const auto t0 = Clock::now();
+      system.set_zero();
+      body.assemble_tangent(rot, ck, &system);
+      for (size_t c = 0; c < cables.size(); ++c) {
+        const int m = static_cast<int>(cables[c].nodes.size());
+        const double w = 1.0 / m;
+        Eigen::MatrixXd K(3 * m, 3 * m);
+        for (int i = 0; i < m; ++i) {
+          for (int j = 0; j < m; ++j) K.block<3, 3>(3 * i, 3 * j) = w * w * cable_tangent[c];
+        }
+        system.add_clique(first_cable_clique + static_cast<int>(c), K, h * h);
+      }
+      if (contact) contact->add_diagonal_blocks(h * h, h, &system);
+      system.add_diagonal(cm * mass);
+      rot_at_factor = rot;
+      node_rotation_current = false;
+      sum.matrix_assembly_s += seconds_since(t0);
+      return system.lower();
+    };
+    auto rotate = [&](Eigen::VectorXd* vf, bool transpose) {
+      if (!node_rotation_current) update_node_rotation();
+      for (int i = 0; i < n; ++i) {
+        const int f0 = system.first_row(i);
+        if (f0 < 0) continue;
+        const Eigen::Vector3d a = vf->segment<3>(f0);
+        vf->segment<3>(f0) = transpose ? Eigen::Vector3d(node_rotation[i].transpose() * a)
+                                       : Eigen::Vector3d(node_rotation[i] * a);
+      }
+    };
+    StepSolver::System A{multiply, lower, nullptr};
+    if (opt.rotated_preconditioner) A.rotate = rotate;
+
     for (int it = 0; it < opt.newton_iterations; ++it) {
       auto ta = Clock::now();
       const double contact_before = sum.contact_s;
       const Eigen::VectorXd x1 = x0 + h * v1;
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(ndof);
-      trip_el.clear();
-      const int bad = body.accumulate(x1, &g, &trip_el, opt.tangent);
+      // The elastic gradient and K v1 (for the stiffness-proportional damping) in one pass.
+      Eigen::VectorXd g, Kv;
+      const int bad = body.gradient(x1, &g, &rot, nullptr, &v1, &Kv);
+      node_rotation_current = false;
       if (bad >= 0) {
         *why = "element " + std::to_string(bad) + " inverted";
         return false;
       }
-      // H_el v1 for the stiffness-proportional damping.
-      Eigen::VectorXd Hv = Eigen::VectorXd::Zero(ndof);
-      for (const auto& t : trip_el) Hv[t.row()] += t.value() * v1[t.col()];
-      trip_all.clear();
-      trip_all.reserve(trip_el.size() + 9 * cables.size() + ndof);
-      const double ck = h * opt.rayleigh_stiffness + h * h;
-      for (const auto& t : trip_el) {
-        const int r = to_free[t.row()], c = to_free[t.col()];
-        if (r >= 0 && c >= 0) trip_all.emplace_back(r, c, ck * t.value());
-      }
       Eigen::VectorXd f =
-          -g - opt.rayleigh_mass * mass_dof.cwiseProduct(v1) - opt.rayleigh_stiffness * Hv;
-      for (const Cable& cb : cables) {
+          -g - opt.rayleigh_mass * mass_dof.cwiseProduct(v1) - opt.rayleigh_stiffness * Kv;
+      for (size_t c = 0; c < cables.size(); ++c) {
+        const Cable& cb = cables[c];
         Eigen::Matrix<double, 6, 1> gc;
         Eigen::Matrix<double, 6, 6> Hc;
         const double w = 1.0 / static_cast<double>(cb.nodes.size());
         Eigen::Vector3d ins = Eigen::Vector3d::Zero();
         for (int k : cb.nodes) ins += w * x1.segment<3>(3 * k);
         chorda_gradient(cb.law, cb.rest, ins, tips[cb.tip], &gc, &Hc);
-        for (int a : cb.nodes) {
-          f.segment<3>(3 * a) -= w * gc.head<3>();
-          for (int b : cb.nodes) {
-            for (int r = 0; r < 3; ++r) {
-              for (int c = 0; c < 3; ++c) {
-                const int fr = to_free[3 * a + r], fc = to_free[3 * b + c];
-                if (fr >= 0 && fc >= 0) trip_all.emplace_back(fr, fc, h * h * w * w * Hc(r, c));
-              }
-            }
-          }
-        }
+        for (int a : cb.nodes) f.segment<3>(3 * a) -= w * gc.head<3>();
+        cable_tangent[c] = Hc.topLeftCorner<3, 3>();
       }
       if (contact) {
         const auto tc = Clock::now();
         const int found = contact->detect(x1);
         sum.contacts = found;
         sum.max_contacts = std::max(sum.max_contacts, found);
-        trip_c.clear();
-        contact->add(v1, &f, &trip_c, h * h, h);
-        for (const auto& t : trip_c) {
-          const int r = to_free[t.row()], c = to_free[t.col()];
-          if (r >= 0 && c >= 0) trip_all.emplace_back(r, c, t.value());
-        }
+        contact->add_forces(v1, &f);
         sum.contact_s += seconds_since(tc);
       }
       for (const PressureFace& pf : pfaces) {
@@ -401,25 +477,19 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
         for (int k = 0; k < 3; ++k) f.segment<3>(3 * pf.load[k]) += force;
       }
-      for (int i = 0; i < n; ++i) {
-        for (int k = 0; k < 3; ++k) {
-          const int fr = to_free[3 * i + k];
-          if (fr >= 0) trip_all.emplace_back(fr, fr, (1.0 + h * opt.rayleigh_mass) * mass[i]);
-        }
-      }
       Eigen::VectorXd r(free_dofs.size());
       for (size_t i = 0; i < free_dofs.size(); ++i) {
         const int d = free_dofs[i];
         r[static_cast<Eigen::Index>(i)] = mass[d / 3] * (v1[d] - v0[d]) - h * f[d];
       }
-      Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(free_dofs.size()),
-                                    static_cast<Eigen::Index>(free_dofs.size()));
-      A.setFromTriplets(trip_all.begin(), trip_all.end());
       sum.assembly_s += seconds_since(ta) - (sum.contact_s - contact_before);
       auto ts = Clock::now();
+      const double matrix_before = sum.matrix_assembly_s;
       Eigen::VectorXd dv;
       const bool solved = linear.solve(A, -r, &dv, why);
-      sum.solve_s += seconds_since(ts);
+      const double matrix_s = sum.matrix_assembly_s - matrix_before;
+      sum.solve_s += seconds_since(ts) - matrix_s;
+      sum.assembly_s += matrix_s;
       if (!solved) return false;
       for (size_t i = 0; i < free_dofs.size(); ++i)
         v1[free_dofs[i]] += dv[static_cast<Eigen::Index>(i)];
@@ -480,6 +550,14 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
                                   3.0 * (sv[3] * sv[3] + sv[4] * sv[4] + sv[5] * sv[5]));
       result.element_stress_mpa[e] = vm;
     }
+    {
+      const Interpenetration ip = find_interpenetration(model, result.positions);
+      sum.interpenetrating_nodes = static_cast<int>(ip.nodes.size());
+      sum.interpenetration_checked = ip.checked;
+    }
+    sum.pcg_fallbacks = linear.stats().pcg_fallbacks;
+    sum.unconverged_solves = linear.stats().unconverged;
+    sum.factorize_s = linear.stats().factorize_s;
     sum.analyses = linear.stats().analyses;
     sum.factorizations = linear.stats().factorizations;
     sum.pcg_iterations = linear.stats().pcg_iterations;
@@ -555,7 +633,10 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"min_contact_distance_mm", s.min_contact_distance_mm},
                  {"factorizations", s.factorizations},
                  {"pcg_iterations", s.pcg_iterations},
-                 {"final_update_norm", s.final_update_norm}};
+                 {"unconverged_solves", s.unconverged_solves},
+                 {"final_update_norm", s.final_update_norm},
+                 {"interpenetrating_nodes", s.interpenetrating_nodes},
+                 {"interpenetration_checked", s.interpenetration_checked}};
   for (const ClosureSample& c : r.samples) {
     rec.time_s.push_back(c.time_s);
     rec.observed_time_s.push_back(c.observed_time_s);

@@ -96,4 +96,85 @@ int ElasticBody::accumulate(const Eigen::VectorXd& x, Eigen::VectorXd* g,
   return accumulate_order(quadratic_, x, g, H, tangent, energy);
 }
 
+template <int N>
+int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
+                                const Eigen::VectorXd& x, Eigen::VectorXd* g,
+                                ElementRotations* rot, double* energy, const Eigen::VectorXd* p,
+                                Eigen::VectorXd* Kp) const {
+  using Tet = CorotationalTet<N>;
+  typename Tet::Nodes xe;
+  typename Tet::Vector ge, pe, kpe;
+  const int E = static_cast<int>(elems.size());
+  rot->R.resize(E);
+  g->setZero(x.size());
+  if (p) Kp->setZero(x.size());
+  if (energy) *energy = 0.0;
+  for (int e = 0; e < E; ++e) {
+    for (int a = 0; a < N; ++a) xe.row(a) = x.segment<3>(3 * mesh_.T(e, a)).transpose();
+    if (!elems[e].rotation(xe, &rot->R[e])) return e;
+    double en = 0.0;
+    if (p) {
+      for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p->segment<3>(3 * mesh_.T(e, a));
+      elems[e].gradient(rot->R[e], xe, &ge, energy ? &en : nullptr, &pe, &kpe);
+      for (int a = 0; a < N; ++a) Kp->segment<3>(3 * mesh_.T(e, a)) += kpe.template segment<3>(3 * a);
+    } else {
+      elems[e].gradient(rot->R[e], xe, &ge, energy ? &en : nullptr);
+    }
+    if (energy) *energy += en;
+    for (int a = 0; a < N; ++a) g->segment<3>(3 * mesh_.T(e, a)) += ge.template segment<3>(3 * a);
+  }
+  return -1;
+}
+
+template <int N>
+void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& elems,
+                                      const ElementRotations& rot, const Eigen::VectorXd& p,
+                                      Eigen::VectorXd* y) const {
+  using Tet = CorotationalTet<N>;
+  typename Tet::Vector pe;
+  for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
+    for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p.segment<3>(3 * mesh_.T(e, a));
+    const typename Tet::Vector ye = elems[e].tangent_times(rot.R[e], pe);
+    for (int a = 0; a < N; ++a) y->segment<3>(3 * mesh_.T(e, a)) += ye.template segment<3>(3 * a);
+  }
+}
+
+template <int N>
+void ElasticBody::assemble_order(const std::vector<CorotationalTet<N>>& elems,
+                                 const ElementRotations& rot, double s,
+                                 SymmetricBlockMatrix* A) const {
+  typename CorotationalTet<N>::Matrix K;
+  for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
+    elems[e].warped_tangent(rot.R[e], &K);
+    A->add_clique(e, K, s);
+  }
+}
+
+int ElasticBody::gradient(const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
+                          double* energy, const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const {
+  if (mesh_.order == TetOrder::kLinear) return gradient_order(linear_, x, g, rot, energy, p, Kp);
+  return gradient_order(quadratic_, x, g, rot, energy, p, Kp);
+}
+
+void ElasticBody::tangent_times(const ElementRotations& rot, const Eigen::VectorXd& p,
+                                Eigen::VectorXd* y) const {
+  if (mesh_.order == TetOrder::kLinear) return tangent_times_order(linear_, rot, p, y);
+  tangent_times_order(quadratic_, rot, p, y);
+}
+
+void ElasticBody::assemble_tangent(const ElementRotations& rot, double s,
+                                   SymmetricBlockMatrix* A) const {
+  if (mesh_.order == TetOrder::kLinear) return assemble_order(linear_, rot, s, A);
+  assemble_order(quadratic_, rot, s, A);
+}
+
+std::vector<std::vector<int>> ElasticBody::element_cliques() const {
+  std::vector<std::vector<int>> c(mesh_.num_elements());
+  const int n = mesh_.nodes_per_element();
+  for (int e = 0; e < mesh_.num_elements(); ++e) {
+    for (int a = 0; a < n; ++a) c[e].push_back(mesh_.T(e, a));
+  }
+  return c;
+}
+
 }  // namespace mvtwin::forward

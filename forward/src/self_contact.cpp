@@ -27,11 +27,13 @@ Eigen::Vector3d barycentric(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
 }
 
 struct CellKey {
+  static std::int64_t of_index(std::int64_t i, std::int64_t j, std::int64_t k) {
+    return ((i & 0x1fffff) << 42) | ((j & 0x1fffff) << 21) | (k & 0x1fffff);
+  }
   static std::int64_t of(const Eigen::Vector3d& p, double h) {
-    const auto i = static_cast<std::int64_t>(std::floor(p.x() / h)) & 0x1fffff;
-    const auto j = static_cast<std::int64_t>(std::floor(p.y() / h)) & 0x1fffff;
-    const auto k = static_cast<std::int64_t>(std::floor(p.z() / h)) & 0x1fffff;
-    return (i << 42) | (j << 21) | k;
+    return of_index(static_cast<std::int64_t>(std::floor(p.x() / h)),
+                    static_cast<std::int64_t>(std::floor(p.y() / h)),
+                    static_cast<std::int64_t>(std::floor(p.z() / h)));
   }
 };
 
@@ -139,51 +141,54 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   candidates_.clear();
   const double reach = opt_.alarm_mm + opt_.margin_mm;
   const double h = reach;
-  std::unordered_map<std::int64_t, std::vector<int>> grid;
-  grid.reserve(4 * s_.triangles.size());
+  // Vertices binned once in cells of size `reach` (sorted by cell); each triangle visits the
+  // cells its box, grown by `reach`, overlaps.
+  std::vector<std::pair<std::int64_t, int>> cells;
+  cells.reserve(s_.vertices.size());
+  for (size_t i = 0; i < s_.vertices.size(); ++i)
+    cells.emplace_back(CellKey::of(x.segment<3>(3 * s_.vertices[i]), h), static_cast<int>(i));
+  std::sort(cells.begin(), cells.end());
   for (size_t t = 0; t < s_.triangles.size(); ++t) {
-    Eigen::Vector3d lo = x.segment<3>(3 * s_.triangles[t][0]), hi = lo;
-    for (int k = 1; k < 3; ++k) {
-      lo = lo.cwiseMin(x.segment<3>(3 * s_.triangles[t][k]));
-      hi = hi.cwiseMax(x.segment<3>(3 * s_.triangles[t][k]));
-    }
-    lo.array() -= reach;
-    hi.array() += reach;
-    for (double X = std::floor(lo.x() / h) * h; X <= hi.x(); X += h) {
-      for (double Y = std::floor(lo.y() / h) * h; Y <= hi.y(); Y += h) {
-        for (double Z = std::floor(lo.z() / h) * h; Z <= hi.z(); Z += h) {
-          grid[CellKey::of(Eigen::Vector3d(X + 0.5 * h, Y + 0.5 * h, Z + 0.5 * h), h)].push_back(
-              static_cast<int>(t));
+    const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
+                          b = x.segment<3>(3 * s_.triangles[t][1]),
+                          c = x.segment<3>(3 * s_.triangles[t][2]);
+    const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
+    const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
+    const auto cell_lo = [&](double v) { return static_cast<std::int64_t>(std::floor(v / h)); };
+    for (std::int64_t I = cell_lo(lo.x()); I <= cell_lo(hi.x()); ++I) {
+      for (std::int64_t J = cell_lo(lo.y()); J <= cell_lo(hi.y()); ++J) {
+        for (std::int64_t K = cell_lo(lo.z()); K <= cell_lo(hi.z()); ++K) {
+          const std::int64_t cell = CellKey::of_index(I, J, K);
+          auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(cell, -1));
+          for (; it != cells.end() && it->first == cell; ++it) {
+            const int i = it->second;
+            const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
+            if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) continue;
+            const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
+            bool excluded = false;
+            for (int k = 0; k < 3 && !excluded; ++k) {
+              Eigen::Vector2d d = s_.plane.row(s_.triangle_plane[t][k]).transpose() - pv;
+              if (s_.period > 0) d.x() -= s_.period * std::round(d.x() / s_.period);
+              excluded = d.norm() < opt_.exclusion_mm;
+            }
+            if (excluded) continue;
+            const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+            if ((p - q).norm() < reach) {
+              // The side is learnt the first time the vertex is over the face (detect()); a
+              // vertex near the triangle but beyond its edges may be on either side of its plane.
+              const auto k2 = known.find(key(i, static_cast<int>(t)));
+              const signed char side = k2 != known.end() ? k2->second : static_cast<signed char>(0);
+              candidates_.push_back({i, static_cast<int>(t), side});
+            }
+          }
         }
       }
     }
   }
-  for (size_t i = 0; i < s_.vertices.size(); ++i) {
-    const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
-    const auto it = grid.find(CellKey::of(p, h));
-    if (it == grid.end()) continue;
-    const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
-    for (int t : it->second) {
-      bool excluded = false;
-      for (int k = 0; k < 3 && !excluded; ++k) {
-        Eigen::Vector2d d = s_.plane.row(s_.triangle_plane[t][k]).transpose() - pv;
-        if (s_.period > 0) d.x() -= s_.period * std::round(d.x() / s_.period);
-        excluded = d.norm() < opt_.exclusion_mm;
-      }
-      if (excluded) continue;
-      const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
-                            b = x.segment<3>(3 * s_.triangles[t][1]),
-                            c = x.segment<3>(3 * s_.triangles[t][2]);
-      const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-      if ((p - q).norm() < reach) {
-        // The side is learnt the first time the vertex is over the face (below); a vertex
-        // near the triangle but beyond its edges may be on either side of its plane.
-        const auto it2 = known.find(key(static_cast<int>(i), t));
-        const signed char side = it2 != known.end() ? it2->second : static_cast<signed char>(0);
-        candidates_.push_back({static_cast<int>(i), t, side});
-      }
-    }
-  }
+  // Grouped by vertex (detect() walks each vertex's candidates together), in a fixed order.
+  std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& p, const Candidate& q) {
+    return p.vertex != q.vertex ? p.vertex < q.vertex : p.triangle < q.triangle;
+  });
   x_search_ = x;
 }
 
@@ -270,37 +275,95 @@ bool SelfContact::step_is_safe(const Eigen::VectorXd& x0, const Eigen::VectorXd&
   return m <= opt_.alarm_mm - opt_.contact_mm;
 }
 
-double SelfContact::add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
-                        std::vector<Eigen::Triplet<double>>* trip, double scale_k,
-                        double scale_c) const {
+void SelfContact::law(double d, double k, double* force, double* stiffness) const {
+  const double da = opt_.alarm_mm, dc = opt_.contact_mm;
+  if (d >= da) {
+    *force = *stiffness = 0.0;
+    return;
+  }
+  *force = k * (da - d);
+  *stiffness = k;
+  if (d < dc && dc > 0) {
+    const double kw = opt_.wall_factor * k;
+    *force += kw * (dc - d) * (dc - d) / (2.0 * dc);
+    *stiffness += kw * (dc - d) / dc;
+  }
+}
+
+double SelfContact::add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f) {
   double energy = 0.0;
-  for (const Pair& pr : pairs_) {
-    const double gap = opt_.alarm_mm - pr.distance;
-    if (gap <= 0) continue;
+  const double da = opt_.alarm_mm, dc = opt_.contact_mm;
+  for (Pair& pr : pairs_) {
+    pr.force = pr.stiffness = pr.eta = 0.0;
+    if (pr.distance >= da) continue;
     const double k = opt_.stiffness_per_area * pr.area;
-    const double fn = k * gap;
-    energy += 0.5 * k * gap * gap;
+    law(pr.distance, k, &pr.force, &pr.stiffness);
+    energy += 0.5 * k * (da - pr.distance) * (da - pr.distance);
+    if (pr.distance < dc && dc > 0) {
+      energy += opt_.wall_factor * k * std::pow(dc - pr.distance, 3) / (6.0 * dc);
+    }
     const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
     const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
     const Eigen::Vector3d& n = pr.normal;
     // Normal force pushes the vertex away from the triangle (and the triangle back).
-    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) += c[a] * fn * n;
+    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) += c[a] * pr.force * n;
     // Lagged Coulomb friction on the relative tangential velocity.
     Eigen::Vector3d vrel = Eigen::Vector3d::Zero();
     for (int a = 0; a < 4; ++a) vrel += c[a] * v.segment<3>(3 * nodes[a]);
     const Eigen::Vector3d vt = vrel - n * n.dot(vrel);
-    const double speed = vt.norm();
-    const double eta = opt_.friction * fn / std::max(speed, opt_.friction_slip_mm_per_s);
-    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) -= c[a] * eta * vt;
-    const Eigen::Matrix3d K = k * n * n.transpose();
-    const Eigen::Matrix3d D = eta * (Eigen::Matrix3d::Identity() - n * n.transpose());
-    // Only the diagonal blocks of the Gauss-Newton stiffness: the couplings between the vertex
-    // and the triangle would change the sparsity pattern whenever the pairs change, and each
-    // new pattern costs a symbolic analysis. The blocks kept are positive semi-definite.
+    pr.eta = opt_.friction * pr.force / std::max(vt.norm(), opt_.friction_slip_mm_per_s);
+    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) -= c[a] * pr.eta * vt;
+  }
+  return energy;
+}
+
+void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scale_c,
+                           Eigen::VectorXd* y) const {
+  for (const Pair& pr : pairs_) {
+    if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
+    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
+    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
+    const Eigen::Vector3d& n = pr.normal;
+    Eigen::Vector3d jp = Eigen::Vector3d::Zero();
+    for (int a = 0; a < 4; ++a) jp += c[a] * p.segment<3>(3 * nodes[a]);
+    const double jn = n.dot(jp);
+    const Eigen::Vector3d t =
+        scale_k * pr.stiffness * jn * n + scale_c * pr.eta * (jp - jn * n);
+    for (int a = 0; a < 4; ++a) y->segment<3>(3 * nodes[a]) += c[a] * t;
+  }
+}
+
+void SelfContact::add_diagonal_blocks(double scale_k, double scale_c,
+                                      SymmetricBlockMatrix* A) const {
+  for (const Pair& pr : pairs_) {
+    if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
+    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
+    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
+    const Eigen::Matrix3d nn = pr.normal * pr.normal.transpose();
+    const Eigen::Matrix3d B =
+        scale_k * pr.stiffness * nn + scale_c * pr.eta * (Eigen::Matrix3d::Identity() - nn);
+    for (int a = 0; a < 4; ++a) A->add_diagonal_block(nodes[a], c[a] * c[a] * B);
+  }
+}
+
+double SelfContact::add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
+                        std::vector<Eigen::Triplet<double>>* trip, double scale_k,
+                        double scale_c) {
+  const double energy = add_forces(v, f);
+  for (const Pair& pr : pairs_) {
+    if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
+    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
+    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
+    const Eigen::Matrix3d nn = pr.normal * pr.normal.transpose();
+    const Eigen::Matrix3d B =
+        scale_k * pr.stiffness * nn + scale_c * pr.eta * (Eigen::Matrix3d::Identity() - nn);
     for (int a = 0; a < 4; ++a) {
-      const Eigen::Matrix3d B = c[a] * c[a] * (scale_k * K + scale_c * D);
-      for (int r = 0; r < 3; ++r) {
-        for (int s = 0; s < 3; ++s) trip->emplace_back(3 * nodes[a] + r, 3 * nodes[a] + s, B(r, s));
+      for (int b = 0; b < 4; ++b) {
+        const Eigen::Matrix3d Bab = c[a] * c[b] * B;
+        for (int r = 0; r < 3; ++r) {
+          for (int s = 0; s < 3; ++s)
+            trip->emplace_back(3 * nodes[a] + r, 3 * nodes[b] + s, Bab(r, s));
+        }
       }
     }
   }

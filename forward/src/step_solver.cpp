@@ -3,6 +3,10 @@
 #include <cmath>
 #include <cstring>
 
+#include <chrono>
+
+#include <omp.h>
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
 
@@ -35,6 +39,16 @@ bool parse_linear_solver(const std::string& text, LinearSolver* out) {
 
 namespace {
 
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+/// CHOLMOD (SuiteSparse 5) runs parallel loops with a compiled-in 4 OpenMP threads; on this
+/// machine's 2 cores, and beside parallel candidate simulations, they only contend. A
+/// max-active-levels of 0 makes every parallel region of this thread run serially.
+void serial_openmp() { omp_set_max_active_levels(0); }
+
 /// A direct factorization whose symbolic analysis is redone only when the pattern changes.
 class Factor {
  public:
@@ -44,6 +58,7 @@ class Factor {
                       std::memcmp(A.outerIndexPtr(), outer_.data(), outer_.size() * sizeof(int)) == 0 &&
                       std::memcmp(A.innerIndexPtr(), inner_.data(), inner_.size() * sizeof(int)) == 0;
     if (!same) {
+      serial_openmp();
       rows_ = A.rows();
       outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
       inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
@@ -51,6 +66,7 @@ class Factor {
       ++st->analyses;
     }
     ++st->factorizations;
+    serial_openmp();
     return numeric(A);
   }
   virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
@@ -67,7 +83,10 @@ class Factor {
 template <typename Solver>
 class FactorOf : public Factor {
  public:
-  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override { return s_.solve(b); }
+  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
+    serial_openmp();
+    return s_.solve(b);
+  }
 
  protected:
   void analyze(const Eigen::SparseMatrix<double>& A) override {
@@ -94,82 +113,135 @@ class FactorOf : public Factor {
 struct StepSolver::Impl {
   std::unique_ptr<Factor> factor;
   bool have_factor = false;
+  bool stale = false;
 };
 
 StepSolver::StepSolver(const Options& o) : impl_(std::make_unique<Impl>()), opt_(o) {
   switch (o.kind) {
-    case LinearSolver::kCholmodSimplicial: {
-      auto f = std::make_unique<FactorOf<Eigen::CholmodSimplicialLLT<Eigen::SparseMatrix<double>>>>();
-      impl_->factor = std::move(f);
+    case LinearSolver::kCholmodSimplicial:
+      impl_->factor = std::make_unique<
+          FactorOf<Eigen::CholmodSimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>>();
       break;
-    }
     case LinearSolver::kEigenLdlt:
-      impl_->factor = std::make_unique<FactorOf<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>>>();
+      impl_->factor = std::make_unique<
+          FactorOf<Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower>>>();
       break;
     case LinearSolver::kCholmodSupernodal:
-    case LinearSolver::kReusedFactorPcg: {
-      auto f = std::make_unique<FactorOf<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>>>();
-      impl_->factor = std::move(f);
+    case LinearSolver::kReusedFactorPcg:
+      impl_->factor = std::make_unique<
+          FactorOf<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>>();
       break;
-    }
   }
 }
 
 StepSolver::~StepSolver() = default;
 
+void StepSolver::invalidate() { impl_->stale = true; }
+
+bool StepSolver::factorize(const System& A, std::string* why) {
+  const auto t0 = Clock::now();
+  const bool ok = impl_->factor->factorize(A.lower(), &stats_);
+  stats_.factorize_s += seconds_since(t0);
+  impl_->stale = false;
+  impl_->have_factor = ok;
+  if (!ok) *why = "linear solver failed (matrix not positive definite)";
+  return ok;
+}
+
 bool StepSolver::solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b,
                        Eigen::VectorXd* x, std::string* why) {
-  ++stats_.solves;
-  auto direct = [&]() -> bool {
-    if (!impl_->factor->factorize(A, &stats_)) {
-      impl_->have_factor = false;
-      *why = "linear solver failed (matrix not positive definite)";
-      return false;
-    }
-    impl_->have_factor = true;
-    *x = impl_->factor->apply(b);
-    if (!x->allFinite()) {
-      *why = "linear solver returned non-finite values";
-      return false;
-    }
-    return true;
-  };
-  if (opt_.kind != LinearSolver::kReusedFactorPcg || !impl_->have_factor) return direct();
+  Eigen::SparseMatrix<double> lower = A.triangularView<Eigen::Lower>();
+  System s;
+  s.multiply = [&A](const Eigen::VectorXd& v, Eigen::VectorXd* y) { *y = A * v; };
+  s.lower = [&lower]() -> const Eigen::SparseMatrix<double>& { return lower; };
+  return solve(s, b, x, why);
+}
 
-  // Preconditioned conjugate gradients with the previous factorization as preconditioner.
+bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                       std::string* why) {
+  ++stats_.solves;
+  if (!b.allFinite()) {
+    *why = "non-finite right-hand side";
+    return false;
+  }
   const double bnorm = b.norm();
   if (!(bnorm > 0)) {
     *x = Eigen::VectorXd::Zero(b.size());
     return true;
   }
-  Eigen::VectorXd xk = impl_->factor->apply(b);
-  Eigen::VectorXd r = b - A * xk;
-  Eigen::VectorXd z = impl_->factor->apply(r);
-  Eigen::VectorXd p = z;
-  double rz = r.dot(z);
-  for (int it = 0; it < opt_.pcg_max_iterations; ++it) {
-    if (r.norm() <= opt_.pcg_tolerance * bnorm) {
-      *x = xk;
-      return x->allFinite();
+  bool fresh = false;
+  if (opt_.kind != LinearSolver::kReusedFactorPcg || !impl_->have_factor || impl_->stale) {
+    if (!factorize(A, why)) return false;
+    fresh = true;
+  }
+  // Preconditioned conjugate gradients on the exact operator. Right after a factorization the
+  // preconditioner is A's factorized part itself and CG only has to account for the terms the
+  // factorization leaves out (contact couplings); with a reused factor it also makes up for how
+  // A has changed since.
+  auto precondition = [&](const Eigen::VectorXd& r) {
+    const auto t = Clock::now();
+    Eigen::VectorXd z;
+    if (A.rotate && !fresh) {
+      Eigen::VectorXd rr = r;
+      A.rotate(&rr, true);
+      z = impl_->factor->apply(rr);
+      A.rotate(&z, false);
+    } else {
+      z = impl_->factor->apply(r);
     }
-    ++stats_.pcg_iterations;
-    const Eigen::VectorXd Ap = A * p;
-    const double pAp = p.dot(Ap);
-    if (!(pAp > 0)) break;
-    const double alpha = rz / pAp;
-    xk += alpha * p;
-    r -= alpha * Ap;
-    z = impl_->factor->apply(r);
-    const double rz_new = r.dot(z);
-    p = z + (rz_new / rz) * p;
-    rz = rz_new;
+    stats_.apply_s += seconds_since(t);
+    return z;
+  };
+  auto pcg = [&](Eigen::VectorXd* xk, int* iterations) {
+    *xk = precondition(b);
+    Eigen::VectorXd Ax;
+    A.multiply(*xk, &Ax);
+    Eigen::VectorXd r = b - Ax;
+    *iterations = 0;
+    if (r.norm() > opt_.pcg_tolerance * bnorm) {
+      Eigen::VectorXd z = precondition(r);
+      Eigen::VectorXd p = z, Ap;
+      double rz = r.dot(z);
+      while (*iterations < opt_.pcg_max_iterations && r.norm() > opt_.pcg_tolerance * bnorm) {
+        ++*iterations;
+        A.multiply(p, &Ap);
+        const double pAp = p.dot(Ap);
+        if (!(pAp > 0)) break;
+        const double alpha = rz / pAp;
+        *xk += alpha * p;
+        r -= alpha * Ap;
+        z = precondition(r);
+        const double rz_new = r.dot(z);
+        p = z + (rz_new / rz) * p;
+        rz = rz_new;
+      }
+    }
+    stats_.pcg_iterations += *iterations;
+    return r.norm() <= opt_.pcg_tolerance * bnorm && xk->allFinite();
+  };
+  Eigen::VectorXd xk;
+  int iterations = 0;
+  bool converged = pcg(&xk, &iterations);
+  if (!converged && !fresh) {
+    ++stats_.pcg_fallbacks;
+    if (!factorize(A, why)) return false;
+    fresh = true;
+    converged = pcg(&xk, &iterations);
   }
-  if (r.norm() <= opt_.pcg_tolerance * bnorm) {
-    *x = xk;
-    return x->allFinite();
+  if (!xk.allFinite()) {
+    *why = "linear solver returned non-finite values";
+    return false;
   }
-  ++stats_.pcg_fallbacks;
-  return direct();
+  if (!converged) {
+    // A fresh factorization and the iteration cap were not enough (stiff couplings the
+    // factorization leaves out): keep the last iterate, which CG has only improved, and count it.
+    ++stats_.unconverged;
+  } else if (opt_.kind == LinearSolver::kReusedFactorPcg && !fresh &&
+             iterations >= opt_.refactor_iterations) {
+    impl_->stale = true;
+  }
+  *x = xk;
+  return true;
 }
 
 }  // namespace mvtwin::forward

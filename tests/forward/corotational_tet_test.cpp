@@ -117,5 +117,38 @@ TYPED_TEST(CorotationalTetTest, UniformStrainEnergyAndMass) {
   EXPECT_GT(CorotationalTet<N>::mass_fractions().minCoeff(), 0.0);
 }
 
+// The polar decomposition (scaled Newton iteration) against the SVD's over random stretches and
+// rotations, from near-identity to strongly stretched and nearly flat, and refused for flat or
+// inverted F.
+TEST(PolarDecomposition, MatchesTheSvdAndRefusesInvertedF) {
+  Rng rng(17);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const double spread = trial < 1000 ? 0.3 : 3.0;  // mild, then strong anisotropy
+    Eigen::Vector3d sigma;
+    for (int k = 0; k < 3; ++k) sigma[k] = std::exp(spread * rng.normal());
+    if (trial % 100 == 0) sigma[2] = 1e-6;  // nearly flat
+    const Eigen::Matrix3d U =
+        Eigen::AngleAxisd(6.3 * rng.uniform(), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
+            .toRotationMatrix();
+    const Eigen::Matrix3d V =
+        Eigen::AngleAxisd(6.3 * rng.uniform(), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
+            .toRotationMatrix();
+    const Eigen::Matrix3d F = U * sigma.asDiagonal() * V.transpose();
+    Eigen::Matrix3d R, S;
+    ASSERT_TRUE(polar_decomposition(F, &R, &S)) << trial;
+    EXPECT_LT((R - U * V.transpose()).cwiseAbs().maxCoeff(), 1e-9) << trial;
+    EXPECT_LT((R * S - F).cwiseAbs().maxCoeff(), 1e-10 * F.norm()) << trial;
+    EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+    EXPECT_LT((S - S.transpose()).cwiseAbs().maxCoeff(), 1e-12 * S.norm());
+  }
+  Eigen::Matrix3d R, S;
+  EXPECT_FALSE(polar_decomposition(Eigen::Vector3d(1, 1, -0.5).asDiagonal().toDenseMatrix(), &R, &S));
+  EXPECT_FALSE(polar_decomposition(Eigen::Matrix3d::Zero(), &R, &S));
+  Eigen::Matrix3d nan = Eigen::Matrix3d::Identity();
+  nan(1, 2) = std::nan("");
+  EXPECT_FALSE(polar_decomposition(nan, &R, &S));
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

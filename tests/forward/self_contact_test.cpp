@@ -190,5 +190,149 @@ TEST(SelfContact, BadOptions) {
   EXPECT_THROW(SelfContact(p.surface, o), Error);
 }
 
+// The contact law with its wall below the contact distance: continuous force, stiffness equal
+// to the force's derivative (finite differences) on every branch, growing to (1 + wall_factor)
+// k at zero distance; nothing beyond the alarm distance.
+TEST(SelfContact, WallLawIsC1AndItsStiffnessIsTheForceDerivative) {
+  Plates p = make_plates(3, 1.0);
+  SelfContact::Options o = options();
+  o.wall_factor = 50.0;
+  const SelfContact c(p.surface, o);
+  const double k = 2.0;
+  double f, kf, fp, kp, fm, km;
+  for (double d : {0.7, 0.59, 0.45, 0.31, 0.3, 0.29, 0.1, 0.0, -0.2}) {
+    c.law(d, k, &f, &kf);
+    const double h = 1e-6;
+    c.law(d + h, k, &fp, &kp);
+    c.law(d - h, k, &fm, &km);
+    // (at d = d_c the second derivative jumps: central differences are off by k_w h / (4 d_c))
+    EXPECT_NEAR(kf, -(fp - fm) / (2 * h), 1e-3 * std::max(1.0, kf)) << "d " << d;
+    EXPECT_NEAR(fp, fm, 1e-4 * std::max(1.0, f)) << "continuous at d " << d;
+    EXPECT_GE(f, 0.0);
+  }
+  c.law(0.7, k, &f, &kf);
+  EXPECT_EQ(f, 0.0);
+  c.law(o.alarm_mm - 1e-9, k, &f, &kf);
+  EXPECT_NEAR(f, 0.0, 1e-8);
+  c.law(0.0, k, &f, &kf);
+  EXPECT_NEAR(kf, k * (1 + o.wall_factor), 1e-12);
+}
+
+// The product with the contact tangent couples vertex and triangle; it equals the triplet
+// matrix; the diagonal blocks are the triplet matrix's node-diagonal blocks; and forces are
+// minus the energy gradient with the wall active (plates closer than the contact distance).
+TEST(SelfContact, TangentProductDiagonalBlocksAndForcesAgree) {
+  Plates p = make_plates(4, 0.2);
+  SelfContact::Options o = options();
+  o.wall_factor = 30.0;
+  o.friction = 0.5;
+  SelfContact c(p.surface, o);
+  ASSERT_GT(c.detect(p.x), 0);
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(p.x.size());
+  for (int i = 0; i < v.size(); ++i) v[i] = std::sin(1.3 * i);  // tangential slip: friction on
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(p.x.size());
+  std::vector<Eigen::Triplet<double>> trip;
+  c.add(v, &f, &trip, 0.7, 0.3);
+  Eigen::SparseMatrix<double> K(p.x.size(), p.x.size());
+  K.setFromTriplets(trip.begin(), trip.end());
+  Eigen::VectorXd q(p.x.size());
+  for (int i = 0; i < q.size(); ++i) q[i] = std::cos(0.7 * i);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(q.size());
+  c.multiply(q, 0.7, 0.3, &y);
+  const Eigen::VectorXd Kq = K * q;
+  ASSERT_GT(Kq.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LT((y - Kq).cwiseAbs().maxCoeff(), 1e-12 * Kq.cwiseAbs().maxCoeff());
+  // Couplings matter: the diagonal blocks alone give a different product.
+  const int nodes = static_cast<int>(p.x.size() / 3);
+  SymmetricBlockMatrix D(std::vector<char>(nodes, 1), [&] {
+    std::vector<std::vector<int>> single;
+    for (int i = 0; i < nodes; ++i) single.push_back({i});
+    return single;
+  }());
+  D.set_zero();
+  c.add_diagonal_blocks(0.7, 0.3, &D);
+  const Eigen::MatrixXd dense = Eigen::MatrixXd(K);
+  for (int i = 0; i < nodes; ++i) {
+    const Eigen::MatrixXd block = Eigen::MatrixXd(D.lower()).block<3, 3>(3 * i, 3 * i);
+    const Eigen::Matrix3d ref = dense.block<3, 3>(3 * i, 3 * i);
+    EXPECT_LT((Eigen::MatrixXd(block) - Eigen::MatrixXd(ref.triangularView<Eigen::Lower>()))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-12 * std::max(1.0, dense.cwiseAbs().maxCoeff()));
+  }
+  Eigen::VectorXd yd;
+  D.multiply(q, &yd);
+  EXPECT_GT((yd - Kq).norm(), 1e-3 * Kq.norm());
+
+  // Forces = -grad energy with the wall active (no friction for this check).
+  o.friction = 0.0;
+  SelfContact c0(p.surface, o);
+  c0.detect(p.x);
+  Eigen::VectorXd f0 = Eigen::VectorXd::Zero(p.x.size()), zero = f0;
+  const double e0 = c0.add_forces(zero, &f0);
+  ASSERT_GT(e0, 0.0);
+  const double h = 1e-6;
+  double worst = 0.0;
+  for (int d = 0; d < p.x.size(); ++d) {
+    Eigen::VectorXd xp = p.x, xm = p.x;
+    xp[d] += h;
+    xm[d] -= h;
+    SelfContact cp(p.surface, o), cm(p.surface, o);
+    cp.detect(xp);
+    cm.detect(xm);
+    Eigen::VectorXd g = zero;
+    const double ep = cp.add_forces(zero, &g), em = cm.add_forces(zero, &g);
+    worst = std::max(worst, std::abs(-(ep - em) / (2 * h) - f0[d]));
+  }
+  EXPECT_LT(worst, 1e-6 * std::max(1.0, f0.lpNorm<Eigen::Infinity>()));
+}
+
+// A load far above what the plain penalty holds within the contact distance: with the wall the
+// pressed plate comes to rest outside the other plate, at the distance where the law balances
+// the load (solved here by bisection); without it, it would rest through the other plate.
+TEST(SelfContact, WallHoldsALoadThePenaltyAloneCannot) {
+  Plates p = make_plates(5, 1.5, 0.0);
+  SelfContact::Options o = options();
+  o.wall_factor = 100.0;
+  SelfContact c(p.surface, o);
+  const double load = 0.1;  // N per vertex: the plain law would balance it at d = 0.6 - 1 mm
+  ASSERT_LT(o.alarm_mm - load / (2.0 * o.stiffness_per_area), 0.0);
+  // Overdamped (terminal speed load / (damping mass) = 10 mm/s): a slow approach, as the
+  // valve's stiffness-proportional damping makes it.
+  const double dt = 1e-3, mass = 1e-6, damping = 1e4;
+  Eigen::VectorXd x = p.x, v = Eigen::VectorXd::Zero(x.size());
+  for (int step = 0; step < 6000; ++step) {
+    c.detect(x);
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(x.size());
+    std::vector<Eigen::Triplet<double>> trip;
+    c.add(v, &f, &trip, dt * dt, dt);
+    Eigen::VectorXd diag = Eigen::VectorXd::Constant(x.size(), mass * (1 + damping * dt));
+    for (const auto& t : trip) {
+      if (t.row() == t.col()) diag[t.row()] += t.value();
+    }
+    for (int i = 25; i < 50; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const int d = 3 * i + k;
+        const double fd = f[d] - (k == 2 ? load : 0.0) - damping * mass * v[d];
+        v[d] += dt * fd / diag[d];
+      }
+    }
+    for (int i = 25; i < 50; ++i) x.segment<3>(3 * i) += dt * v.segment<3>(3 * i);
+  }
+  // Equilibrium of an interior vertex: its own pair and the lower plate's vertex under it push
+  // with the same law (k = stiffness_per_area x 1 mm^2 each): 2 F(d) = load.
+  double lo = -0.5, hi = o.alarm_mm;
+  for (int it = 0; it < 100; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    double f, k;
+    c.law(mid, o.stiffness_per_area, &f, &k);
+    (2.0 * f > load ? lo : hi) = mid;
+  }
+  EXPECT_GT(lo, 0.0);
+  const int centre = 25 + 2 * 5 + 2;
+  EXPECT_NEAR(x[3 * centre + 2], lo, 0.02);
+  for (int i = 25; i < 50; ++i) EXPECT_GT(x[3 * i + 2], 0.0) << "vertex " << i << " went through";
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

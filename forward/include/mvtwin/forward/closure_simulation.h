@@ -25,11 +25,16 @@ struct ClosureOptions {
   /// velocity update is below newton_tolerance (mm/s, infinity norm).
   int newton_iterations = 1;
   double newton_tolerance = 1e-6;
-  Tangent tangent = Tangent::kWarped;
-  /// Linear solver of each step and, for kReusedFactorPcg, its tolerance and iteration cap.
-  LinearSolver solver = LinearSolver::kCholmodSupernodal;
-  double pcg_tolerance = 1e-8;
+  /// Linear solver of each step and, for kReusedFactorPcg, its relative tolerance, the
+  /// iteration cap (then: refactorize) and the iteration count that makes the next step
+  /// refactorize (StepSolver). The step matrix is the warped co-rotational tangent R K0 R^T.
+  LinearSolver solver = LinearSolver::kReusedFactorPcg;
+  double pcg_tolerance = 0.1;
   int pcg_max_iterations = 25;
+  int refactor_iterations = 3;
+  /// kReusedFactorPcg: precondition with the last factorization rotated by each node's
+  /// rotation since (StepSolver::System::rotate).
+  bool rotated_preconditioner = true;
   /// Prescribed boundary motion from the images; off = held at end-diastole (sensitivity).
   bool annulus_motion = true;
   bool papillary_motion = true;
@@ -42,6 +47,9 @@ struct ClosureOptions {
   double contact_distance_mm = 0.3;
   double contact_friction = 0.5;
   double contact_stiffness_factor = 2.0;
+  /// Below the contact distance the contact stiffness grows to (1 + wall factor) x its value at
+  /// zero distance (SelfContact), so that edge-on loads do not push free edges through.
+  double contact_wall_factor = 100.0;
   /// Retry (halve) a step that moves a node near the other leaflet by more than alarm - contact
   /// distance (guards against tunnelling at large dt; off by default: on the valve it costs
   /// many halvings and does not reduce the load-driven sinking, docs/forward-status.md).
@@ -79,7 +87,14 @@ struct ClosureSummary {
   double min_contact_distance_mm = 0;
   int contact_reused = 0;     ///< detections that reused the candidate list (no search)
   double final_update_norm = 0;  ///< last velocity update, mm/s
+  /// Surface nodes of one leaflet inside the other at the end (forward/interpenetration.h), of
+  /// the nodes checked.
+  int interpenetrating_nodes = 0, interpenetration_checked = 0;
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
+  int pcg_fallbacks = 0;        ///< PCG solves that gave up and factorized
+  int unconverged_solves = 0;   ///< solves left above pcg_tolerance after a fresh factorization
+  double factorize_s = 0;       ///< part of solve_s spent in factorizations
+  double matrix_assembly_s = 0; ///< part of assembly_s spent assembling the step matrix
 
   std::string brief_report() const;
 };

@@ -43,6 +43,20 @@ class CorotationalTet {
   bool evaluate(const Nodes& x, Vector* g, Matrix* consistent, Matrix* warped,
                 double* energy = nullptr) const;
 
+  /// The pieces of evaluate() for the warped tangent, so that a time step computes each
+  /// element's rotation once and reuses it for the gradient, products with the tangent and
+  /// (when a factorization is due) its assembly.
+  ///   rotation        R of the corner tetrahedron at x; false when inverted or flat
+  ///   gradient        g = R K0 (R^T x - X), the energy if asked, and, with p, also R K0 R^T p
+  ///                   (one pass over K0 for both)
+  ///   tangent_times   R K0 R^T p
+  ///   warped_tangent  R K0 R^T
+  bool rotation(const Nodes& x, Eigen::Matrix3d* R) const;
+  void gradient(const Eigen::Matrix3d& R, const Nodes& x, Vector* g, double* energy,
+                const Vector* p = nullptr, Vector* Kp = nullptr) const;
+  Vector tangent_times(const Eigen::Matrix3d& R, const Vector& p) const;
+  void warped_tangent(const Eigen::Matrix3d& R, Matrix* K) const;
+
   /// Green-Lagrange-free small strain of the co-rotated displacement at the centroid, Voigt.
   Eigen::Matrix<double, 6, 1> centroid_strain(const Nodes& x) const;
 

@@ -6,20 +6,35 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include "mvtwin/forward/symmetric_block_matrix.h"
 #include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
 
 /// Leaflet self-contact by vertex-triangle penalties (SPEC Sec. 4: alarm distance 0.6 mm,
-/// contact distance 0.3 mm, friction 0.5).
+/// contact (minimum) distance 0.3 mm, friction 0.5).
 ///
 /// Contact vertices are the corner nodes of the atrial and ventricular surfaces; contact
 /// triangles are the triangles of both surfaces. A pair is ignored when the vertex and the
 /// triangle are neighbours in the unrolled leaflet (closer than `exclusion_mm` in the plane):
-/// those are kept apart by the elements themselves. For a pair closer than the alarm distance d_a
-/// the energy is k_v / 2 (d_a - d)^2, with k_v = stiffness_per_area x the vertex's surface
-/// area, so that a pressure p holds a vertex at d_a - p / stiffness_per_area. Friction is
-/// lagged Coulomb friction regularized below `friction_slip_mm_per_s`.
+/// those are kept apart by the elements themselves.
+///
+/// The normal force of a pair at distance d (N), with k = stiffness_per_area x the area the pair
+/// stands for, d_a the alarm and d_c the contact distance:
+///   F(d) = k (d_a - d)                                   d_c <= d < d_a
+///   F(d) = k (d_a - d) + k_w (d_c - d)^2 / (2 d_c)       d < d_c,   k_w = wall_factor x k
+/// so that the stiffness grows from k at d_c to k (1 + wall_factor) at d = 0 and beyond: a
+/// free edge pressed edge-on against the other leaflet (its membrane load on a vertex of little
+/// area) is held near the minimum distance instead of sinking in, while the law stays C1 (no
+/// jump for the one linearization per step). Friction is lagged Coulomb friction regularized
+/// below `friction_slip_mm_per_s`.
+///
+/// Tangent: the Gauss-Newton stiffness k(d) J^T n n^T J of each pair (J = [I, -w0, -w1, -w2]
+/// maps the four nodes' motion to the vertex's motion relative to its closest point) plus the
+/// friction damping. multiply() applies it with all vertex-triangle couplings (for an iterative
+/// solve); add_diagonal_blocks() adds only its node-diagonal blocks to a fixed-pattern matrix
+/// (a preconditioner: the couplings would change the sparsity pattern whenever the pairs
+/// change).
 ///
 /// The proximity search uses a hash grid of cell size d_a + margin and keeps the vertex-triangle
 /// pairs within d_a + margin (a Verlet list). Until some node has moved by more than margin / 2
@@ -33,6 +48,7 @@ class SelfContact {
     double friction = 0.5;
     double friction_slip_mm_per_s = 1.0;
     double stiffness_per_area = 0.0;  ///< N/mm^3 (MPa/mm); set by the simulation from pressure
+    double wall_factor = 0.0;  ///< extra stiffness below the contact distance (see above)
     double exclusion_mm = 4.0;
     double margin_mm = 1.5;
   };
@@ -43,6 +59,9 @@ class SelfContact {
     Eigen::Vector3d normal;    ///< direction that separates them (on the vertex's side)
     double distance;           ///< signed: negative once the vertex is through the triangle
     double area;               ///< surface area the vertex stands for, mm^2
+    // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
+    // (N s/mm) and the tangential slip direction's projector is I - n n^T.
+    double force = 0, stiffness = 0, eta = 0;
   };
 
   /// What can touch: contact vertices (node ids) and triangles (node ids), each with the index
@@ -69,10 +88,19 @@ class SelfContact {
   /// pairs within the alarm distance.
   int detect(const Eigen::VectorXd& x);
   /// Adds the forces of the pairs found by detect() (velocities v, all nodes, for friction) to
-  /// f, and to `triplets` (node dof indices) scale_k x the Gauss-Newton contact stiffness plus
-  /// scale_c x the friction damping. Returns the penalty energy.
+  /// f and keeps each pair's linearization. Returns the penalty energy (N mm).
+  double add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f);
+  /// y += (scale_k K + scale_c D) p over all nodes' dofs, with every coupling (K: Gauss-Newton
+  /// contact stiffness, D: friction damping, at the last add_forces()).
+  void multiply(const Eigen::VectorXd& p, double scale_k, double scale_c,
+                Eigen::VectorXd* y) const;
+  /// Adds the node-diagonal 3x3 blocks of scale_k K + scale_c D to A.
+  void add_diagonal_blocks(double scale_k, double scale_c, SymmetricBlockMatrix* A) const;
+  /// add_forces() and, as triplets over node dofs, scale_k K + scale_c D with every coupling.
   double add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
-             std::vector<Eigen::Triplet<double>>* triplets, double scale_k, double scale_c) const;
+             std::vector<Eigen::Triplet<double>>* triplets, double scale_k, double scale_c);
+  /// Normal force (N) and stiffness (N/mm) of the law above at distance d for pair stiffness k.
+  void law(double d, double k, double* force, double* stiffness) const;
 
   /// False when a step from x0 to x1 moved a node of a candidate pair (a vertex and a triangle
   /// within alarm + margin of each other) by more than alarm - contact distance: such a step
