@@ -81,6 +81,7 @@ const std::map<std::string, Field>& fields() {
     dbl("contact_alarm_mm", [](ClosureOptions& o) -> double& { return o.contact_alarm_mm; });
     dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact_distance_mm; });
     dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact_friction; });
+    dbl("inversion_guard", [](ClosureOptions& o) -> double& { return o.inversion_guard; });
     dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact_wall_factor; });
     dbl("contact_stiffness_factor",
         [](ClosureOptions& o) -> double& { return o.contact_stiffness_factor; });

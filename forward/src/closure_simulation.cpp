@@ -120,6 +120,8 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(pcg_tolerance > 0 && pcg_tolerance < 1) || pcg_max_iterations < 1)
     return bad("pcg_tolerance must be in (0, 1) and pcg_max_iterations >= 1");
   if (refactor_iterations < 1) return bad("refactor_iterations must be >= 1");
+  if (!(inversion_guard >= 0 && inversion_guard < 1))
+    return bad("inversion_guard must be in [0, 1) (0: off)");
   if (!(contact_wall_factor >= 0 && contact_wall_factor <= 1e4))
     return bad("contact_wall_factor must be in [0, 1e4]");
   if (newton_iterations < 1 || newton_iterations > 100)
@@ -151,7 +153,8 @@ std::string ClosureSummary::brief_report() const {
      << " pairs at the end (max " << max_contacts << ", closest " << min_contact_distance_mm
      << " mm), " << contact_searches << " searches, "
      << contact_reused << " reused the candidate list; " << interpenetrating_nodes << " of "
-     << interpenetration_checked << " surface nodes inside the other leaflet";
+     << interpenetration_checked << " surface nodes inside the other leaflet; " << guarded_elements
+     << " elements held by the inversion guard";
   return os.str();
 }
 
@@ -167,11 +170,12 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   }
   const ValveModel model = build_valve_model(seq, opt.model);
   const SolidMesh& mesh = model.mesh;
-  const ElasticBody body(mesh, [&](int tag) {
+  ElasticBody body(mesh, [&](int tag) {
     return tag == static_cast<int>(LeafletTag::kAnterior)
                ? TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale)
                : TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale);
   });
+  body.set_inversion_guard(opt.inversion_guard);
   const int n = mesh.num_nodes(), ndof = 3 * n;
   const int U = opt.model.ures, V = opt.model.vres, L = opt.model.layers;
   const BoundaryMotion motion(seq, U, opt.stretch, opt.annulus_motion, opt.papillary_motion);
@@ -502,6 +506,12 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       *why = "non-finite positions";
       return false;
     }
+    // The linearization point was checked above; the step's end must be valid too, or the next
+    // step would start from an inverted element that no smaller step can mend.
+    if (const int bad = body.first_inverted(x_new); bad >= 0) {
+      *why = "element " + std::to_string(bad) + " inverted";
+      return false;
+    }
     double moved = 0.0;
     if (contact && opt.contact_limit_motion && !contact->step_is_safe(x0, x_new, &moved)) {
       *why = "a node near the other leaflet moved " + std::to_string(moved) +
@@ -555,6 +565,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       sum.interpenetrating_nodes = static_cast<int>(ip.nodes.size());
       sum.interpenetration_checked = ip.checked;
     }
+    sum.guarded_elements = static_cast<int>(rot.guards.size());
     sum.pcg_fallbacks = linear.stats().pcg_fallbacks;
     sum.unconverged_solves = linear.stats().unconverged;
     sum.factorize_s = linear.stats().factorize_s;
@@ -636,6 +647,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"unconverged_solves", s.unconverged_solves},
                  {"final_update_norm", s.final_update_norm},
                  {"interpenetrating_nodes", s.interpenetrating_nodes},
+                 {"guarded_elements", s.guarded_elements},
                  {"interpenetration_checked", s.interpenetration_checked}};
   for (const ClosureSample& c : r.samples) {
     rec.time_s.push_back(c.time_s);

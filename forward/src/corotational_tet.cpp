@@ -176,6 +176,23 @@ bool CorotationalTet<N>::rotation(const Nodes& x, Eigen::Matrix3d* R) const {
 }
 
 template <int N>
+double CorotationalTet<N>::corner_jacobian(const Nodes& x,
+                                           Eigen::Matrix<double, 12, 1>* gradient) const {
+  Eigen::Matrix3d Ds;
+  for (int j = 0; j < 3; ++j) Ds.col(j) = (x.row(j + 1) - x.row(0)).transpose();
+  const Eigen::Matrix3d F = Ds * Dm_inv_;
+  // dJ/dF = cof(F); F = sum_j x_j gL_j^T with gL_j the gradients of the barycentric coordinates.
+  Eigen::Matrix3d cof;
+  cof.col(0) = F.col(1).cross(F.col(2));
+  cof.col(1) = F.col(2).cross(F.col(0));
+  cof.col(2) = F.col(0).cross(F.col(1));
+  const Eigen::RowVector3d g0 = -Dm_inv_.colwise().sum();
+  gradient->segment<3>(0) = cof * g0.transpose();
+  for (int j = 1; j < 4; ++j) gradient->segment<3>(3 * j) = cof * Dm_inv_.row(j - 1).transpose();
+  return F.determinant();
+}
+
+template <int N>
 void CorotationalTet<N>::gradient(const Eigen::Matrix3d& R, const Nodes& x, Vector* g,
                                   double* energy, const Vector* p, Vector* Kp) const {
   // Column-by-column products (axpy over K0's contiguous columns): measured 2-4x faster than

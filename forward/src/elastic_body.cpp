@@ -1,5 +1,6 @@
 #include "mvtwin/forward/elastic_body.h"
 
+#include <cmath>
 #include <string>
 
 #include <Eigen/LU>
@@ -17,6 +18,7 @@ ElasticBody::ElasticBody(SolidMesh mesh,
     std::string err;
     if (!m.is_valid(&err)) throw Error("element " + std::to_string(e) + " material: " + err);
     const Eigen::Matrix<double, 6, 6> C = m.stiffness(mesh_.fibre.row(e).transpose());
+    const double kappa = (C(0, 0) + C(1, 1) + C(2, 2)) / 3.0;
     auto rest = [&](auto& X) {
       for (int a = 0; a < n; ++a) X.row(a) = mesh_.V.row(mesh_.T(e, a));
       Eigen::Matrix3d Dm;
@@ -28,10 +30,12 @@ ElasticBody::ElasticBody(SolidMesh mesh,
       CorotationalTet<4>::Nodes X;
       rest(X);
       linear_.emplace_back(X, C);
+      guard_scale_.push_back(kappa * linear_.back().rest_volume());
     } else {
       CorotationalTet<10>::Nodes X;
       rest(X);
       quadratic_.emplace_back(X, C);
+      guard_scale_.push_back(kappa * quadratic_.back().rest_volume());
     }
   }
 }
@@ -106,9 +110,12 @@ int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
   typename Tet::Vector ge, pe, kpe;
   const int E = static_cast<int>(elems.size());
   rot->R.resize(E);
+  rot->guards.clear();
+  rot->guard_of_element.assign(E, -1);
   g->setZero(x.size());
   if (p) Kp->setZero(x.size());
   if (energy) *energy = 0.0;
+  Eigen::Matrix<double, 12, 1> dJ;
   for (int e = 0; e < E; ++e) {
     for (int a = 0; a < N; ++a) xe.row(a) = x.segment<3>(3 * mesh_.T(e, a)).transpose();
     if (!elems[e].rotation(xe, &rot->R[e])) return e;
@@ -116,9 +123,27 @@ int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
     if (p) {
       for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p->segment<3>(3 * mesh_.T(e, a));
       elems[e].gradient(rot->R[e], xe, &ge, energy ? &en : nullptr, &pe, &kpe);
-      for (int a = 0; a < N; ++a) Kp->segment<3>(3 * mesh_.T(e, a)) += kpe.template segment<3>(3 * a);
     } else {
       elems[e].gradient(rot->R[e], xe, &ge, energy ? &en : nullptr);
+    }
+    if (guard_j0_ > 0.0) {
+      const double J = elems[e].corner_jacobian(xe, &dJ);
+      if (J < guard_j0_) {
+        // phi = -(J - j0)^2 ln(J / j0) and its first two derivatives (all >= 0 below j0).
+        const double j0 = guard_j0_, lg = std::log(J / j0), d = J - j0;
+        const double phi = -d * d * lg;
+        const double phi1 = -2.0 * d * lg - d * d / J;
+        const double phi2 = -2.0 * lg - 4.0 * d / J + d * d / (J * J);
+        const double k = guard_scale_[e];
+        ge.template head<12>() += k * phi1 * dJ;
+        en += k * phi;
+        rot->guard_of_element[e] = static_cast<int>(rot->guards.size());
+        rot->guards.push_back({e, k * phi2, dJ});
+        if (p) kpe.template head<12>() += k * phi2 * dJ.dot(pe.template head<12>()) * dJ;
+      }
+    }
+    if (p) {
+      for (int a = 0; a < N; ++a) Kp->segment<3>(3 * mesh_.T(e, a)) += kpe.template segment<3>(3 * a);
     }
     if (energy) *energy += en;
     for (int a = 0; a < N; ++a) g->segment<3>(3 * mesh_.T(e, a)) += ge.template segment<3>(3 * a);
@@ -134,7 +159,11 @@ void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& ele
   typename Tet::Vector pe;
   for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
     for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p.segment<3>(3 * mesh_.T(e, a));
-    const typename Tet::Vector ye = elems[e].tangent_times(rot.R[e], pe);
+    typename Tet::Vector ye = elems[e].tangent_times(rot.R[e], pe);
+    if (!rot.guard_of_element.empty() && rot.guard_of_element[e] >= 0) {
+      const auto& gd = rot.guards[rot.guard_of_element[e]];
+      ye.template head<12>() += gd.coefficient * gd.dJ.dot(pe.template head<12>()) * gd.dJ;
+    }
     for (int a = 0; a < N; ++a) y->segment<3>(3 * mesh_.T(e, a)) += ye.template segment<3>(3 * a);
   }
 }
@@ -146,6 +175,10 @@ void ElasticBody::assemble_order(const std::vector<CorotationalTet<N>>& elems,
   typename CorotationalTet<N>::Matrix K;
   for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
     elems[e].warped_tangent(rot.R[e], &K);
+    if (!rot.guard_of_element.empty() && rot.guard_of_element[e] >= 0) {
+      const auto& gd = rot.guards[rot.guard_of_element[e]];
+      K.template topLeftCorner<12, 12>() += gd.coefficient * gd.dJ * gd.dJ.transpose();
+    }
     A->add_clique(e, K, s);
   }
 }
@@ -166,6 +199,19 @@ void ElasticBody::assemble_tangent(const ElementRotations& rot, double s,
                                    SymmetricBlockMatrix* A) const {
   if (mesh_.order == TetOrder::kLinear) return assemble_order(linear_, rot, s, A);
   assemble_order(quadratic_, rot, s, A);
+}
+
+int ElasticBody::first_inverted(const Eigen::VectorXd& x) const {
+  for (int e = 0; e < mesh_.num_elements(); ++e) {
+    Eigen::Matrix3d Ds, Dm;
+    for (int j = 0; j < 3; ++j) {
+      Ds.col(j) = x.segment<3>(3 * mesh_.T(e, j + 1)) - x.segment<3>(3 * mesh_.T(e, 0));
+      Dm.col(j) = (mesh_.V.row(mesh_.T(e, j + 1)) - mesh_.V.row(mesh_.T(e, 0))).transpose();
+    }
+    // Rest elements have det Dm > 0 (checked at construction).
+    if (!(Ds.determinant() > 0.0)) return e;
+  }
+  return -1;
 }
 
 std::vector<std::vector<int>> ElasticBody::element_cliques() const {

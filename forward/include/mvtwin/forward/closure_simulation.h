@@ -54,6 +54,9 @@ struct ClosureOptions {
   /// distance (guards against tunnelling at large dt; off by default: on the valve it costs
   /// many halvings and does not reduce the load-driven sinking, docs/forward-status.md).
   bool contact_limit_motion = false;
+  /// Inversion guard: volumetric barrier below this det F of an element's corner tetrahedron
+  /// (ElasticBody::set_inversion_guard; 0 = off).
+  double inversion_guard = 0.2;
   /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
   std::vector<int> ruptured_marginal_chordae;
   /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
@@ -90,6 +93,8 @@ struct ClosureSummary {
   /// Surface nodes of one leaflet inside the other at the end (forward/interpenetration.h), of
   /// the nodes checked.
   int interpenetrating_nodes = 0, interpenetration_checked = 0;
+  /// Elements compressed below the inversion guard's threshold at the last linearization.
+  int guarded_elements = 0;
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
   int pcg_fallbacks = 0;        ///< PCG solves that gave up and factorized
   int unconverged_solves = 0;   ///< solves left above pcg_tolerance after a fresh factorization

@@ -52,6 +52,9 @@ class CorotationalTet {
   ///   tangent_times   R K0 R^T p
   ///   warped_tangent  R K0 R^T
   bool rotation(const Nodes& x, Eigen::Matrix3d* R) const;
+  /// det F of the corner tetrahedron at x and its gradient with respect to the four corners
+  /// (12 entries, corner-major).
+  double corner_jacobian(const Nodes& x, Eigen::Matrix<double, 12, 1>* gradient) const;
   void gradient(const Eigen::Matrix3d& R, const Nodes& x, Vector* g, double* energy,
                 const Vector* p = nullptr, Vector* Kp = nullptr) const;
   Vector tangent_times(const Eigen::Matrix3d& R, const Vector& p) const;

@@ -22,6 +22,15 @@ enum class Tangent {
 /// reused, at the same positions, by products with the tangent and by its assembly.
 struct ElementRotations {
   std::vector<Eigen::Matrix3d> R;
+  /// Elements within the inversion guard's range (ElasticBody::set_inversion_guard): the
+  /// Gauss-Newton coefficient and the gradient of the corner tetrahedron's det F.
+  struct Guard {
+    int element;
+    double coefficient;
+    Eigen::Matrix<double, 12, 1> dJ;
+  };
+  std::vector<Guard> guards;
+  std::vector<int> guard_of_element;  ///< index into guards or -1
 };
 
 /// The elastic leaflet tissue of a solid mesh: per-element co-rotational tetrahedra with the
@@ -51,6 +60,18 @@ class ElasticBody {
   int gradient(const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
                double* energy = nullptr, const Eigen::VectorXd* p = nullptr,
                Eigen::VectorXd* Kp = nullptr) const;
+  /// Inversion guard of the time integrator's path (gradient, tangent_times, assemble_tangent;
+  /// not accumulate): a volumetric barrier on each element's corner tetrahedron,
+  ///   E_g = kappa V0 phi(J),  phi(J) = -(J - j0)^2 ln(J / j0) for 0 < J < j0, else 0,
+  /// with J = det F and kappa the element's mean longitudinal modulus (C11 + C22 + C33) / 3.
+  /// It is C2 and zero above j0 (0.2 by default: far beyond physiological compression, so
+  /// it leaves normal deformation untouched) and unbounded as J -> 0: co-rotational linear
+  /// elasticity alone lets a sheared element collapse at finite energy. j0 = 0 switches it off.
+  void set_inversion_guard(double j0) { guard_j0_ = j0; }
+  double inversion_guard() const { return guard_j0_; }
+
+  /// First element whose corner tetrahedron is inverted or flat at x (det F <= 0), or -1.
+  int first_inverted(const Eigen::VectorXd& x) const;
   /// y += K p with K the warped tangent at the rotations' positions (all dofs).
   void tangent_times(const ElementRotations& rot, const Eigen::VectorXd& p,
                      Eigen::VectorXd* y) const;
@@ -78,6 +99,8 @@ class ElasticBody {
                       double s, SymmetricBlockMatrix* A) const;
 
   SolidMesh mesh_;
+  double guard_j0_ = 0.0;
+  std::vector<double> guard_scale_;  // kappa V0 per element
   std::vector<CorotationalTet<4>> linear_;
   std::vector<CorotationalTet<10>> quadratic_;
 };
