@@ -100,8 +100,7 @@ const std::map<std::string, Field>& fields() {
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.rotated_preconditioner; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
-    boolean("contact_limit_motion",
-            [](ClosureOptions& o) -> bool& { return o.contact_limit_motion; });
+    boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact_ccd; });
     boolean("annulus_motion", [](ClosureOptions& o) -> bool& { return o.annulus_motion; });
     boolean("papillary_motion", [](ClosureOptions& o) -> bool& { return o.papillary_motion; });
     m["order"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {

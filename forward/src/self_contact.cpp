@@ -99,6 +99,9 @@ SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
         s.triangles.push_back(sub[k]);
         s.triangle_plane.push_back(sub_plane[k]);
         s.triangle_group.push_back(group);
+        // The model's triangles face the ventricle: outward on the ventricular surface, inward
+        // (into the leaflet) on the atrial one.
+        s.triangle_outward.push_back(layer == 0 ? -1 : 1);
       }
     }
   }
@@ -117,11 +120,12 @@ SelfContact::SelfContact(Surface surface, const Options& o) : opt_(o), s_(std::m
     throw Error("self-contact: need alarm distance > contact distance >= 0");
   }
   if (!(o.friction >= 0.0 && o.friction_slip_mm_per_s > 0.0 && o.stiffness_per_area >= 0.0 &&
-        o.margin_mm > 0.0 && o.exclusion_mm >= 0.0)) {
+        o.margin_mm > 0.0 && o.exclusion_mm >= 0.0 && o.max_depth_mm > 0.0)) {
     throw Error("self-contact: friction, stiffness, margin and exclusion must be >= 0");
   }
   if (s_.vertices.size() != s_.vertex_plane.size() || s_.vertices.size() != s_.vertex_area.size() ||
       s_.triangles.size() != s_.triangle_plane.size() ||
+      s_.triangles.size() != s_.triangle_outward.size() ||
       (!s_.triangle_group.empty() && s_.triangle_group.size() != s_.triangles.size())) {
     throw Error("self-contact: surface arrays differ in size");
   }
@@ -130,14 +134,6 @@ SelfContact::SelfContact(Surface surface, const Options& o) : opt_(o), s_(std::m
 
 void SelfContact::full_search(const Eigen::VectorXd& x) {
   ++searches_;
-  // Sides of the pairs already known are kept: a vertex that was pushed through a triangle must
-  // be pushed back, not further.
-  std::unordered_map<std::int64_t, signed char> known;
-  known.reserve(candidates_.size());
-  const auto key = [&](int i, int t) {
-    return static_cast<std::int64_t>(i) * static_cast<std::int64_t>(s_.triangles.size()) + t;
-  };
-  for (const Candidate& c : candidates_) known[key(c.vertex, c.triangle)] = c.side;
   candidates_.clear();
   const double reach = opt_.alarm_mm + opt_.margin_mm;
   const double h = reach;
@@ -173,13 +169,7 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
             }
             if (excluded) continue;
             const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-            if ((p - q).norm() < reach) {
-              // The side is learnt the first time the vertex is over the face (detect()); a
-              // vertex near the triangle but beyond its edges may be on either side of its plane.
-              const auto k2 = known.find(key(i, static_cast<int>(t)));
-              const signed char side = k2 != known.end() ? k2->second : static_cast<signed char>(0);
-              candidates_.push_back({i, static_cast<int>(t), side});
-            }
+            if ((p - q).norm() < reach) candidates_.push_back({i, static_cast<int>(t)});
           }
         }
       }
@@ -224,16 +214,16 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
                             c = x.segment<3>(3 * s_.triangles[t][2]);
       const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
       const Eigen::Vector3d w = barycentric(q, a, b, c);
-      // Over the face: distance signed by the side the vertex came from, so that a vertex
-      // pushed through is pushed back. Beyond an edge or corner (around the free edge): the
-      // plain distance.
+      // Over the face: the distance signed by the face's outward side (negative inside the
+      // leaflet), so that a vertex pushed in is pushed back out; deeper than max_depth the
+      // leaflet's other face is nearer and answers. Beyond an edge or corner (around the free
+      // edge): the plain distance.
       Eigen::Vector3d n;
       double d;
       if (w.minCoeff() > 1e-9) {
-        n = (b - a).cross(c - a).normalized();
-        if (candidates_[k].side == 0) candidates_[k].side = n.dot(p - q) >= 0 ? 1 : -1;
-        n *= candidates_[k].side;
+        n = s_.triangle_outward[t] * (b - a).cross(c - a).normalized();
         d = n.dot(p - q);
+        if (d < -opt_.max_depth_mm) continue;
       } else {
         d = (p - q).norm();
         n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
@@ -260,19 +250,126 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
   return static_cast<int>(pairs_.size());
 }
 
-bool SelfContact::step_is_safe(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1,
-                               double* worst) const {
-  double m = 0.0;
-  for (const Candidate& c : candidates_) {
-    m = std::max(m, (x1.segment<3>(3 * s_.vertices[c.vertex]) -
-                     x0.segment<3>(3 * s_.vertices[c.vertex])).norm());
-    for (int k = 0; k < 3; ++k) {
-      const int n = s_.triangles[c.triangle][k];
-      m = std::max(m, (x1.segment<3>(3 * n) - x0.segment<3>(3 * n)).norm());
+namespace {
+
+/// Whether p passes into the solid through triangle (a, b, c) as all four move linearly from
+/// t = 0 to 1: a root of the cubic coplanarity f(t) = det[b - a, c - a, p - a](t) where p lies
+/// inside the triangle, with p ending on the inner side (opposite to `outward`, +1 along
+/// (b - a) x (c - a)). A vertex that had sunk slightly in and comes back out is not a crossing.
+bool vertex_triangle_crossing(const Eigen::Vector3d p[2], const Eigen::Vector3d a[2],
+                              const Eigen::Vector3d b[2], const Eigen::Vector3d c[2],
+                              int outward) {
+  auto at = [](const Eigen::Vector3d q[2], double t) { return Eigen::Vector3d((1 - t) * q[0] + t * q[1]); };
+  auto f = [&](double t) {
+    const Eigen::Vector3d A = at(a, t);
+    return (at(b, t) - A).cross(at(c, t) - A).dot(at(p, t) - A);
+  };
+  auto inside = [&](double t) {
+    const Eigen::Vector3d A = at(a, t), B = at(b, t), C = at(c, t), P = at(p, t);
+    const Eigen::Vector3d w = barycentric(P, A, B, C);
+    const double tol = 1e-6;
+    return w.minCoeff() >= -tol && (P - (w[0] * A + w[1] * B + w[2] * C)).norm() < 1e-6 + 1e-3 * (B - A).norm();
+  };
+  // A cubic has at most 3 roots: sample finely enough to separate them on valve-scale motion,
+  // then bisect each sign change.
+  constexpr int kSamples = 16;
+  if (f(1.0) * outward >= 0) return false;  // ends outside
+  double t0 = 0.0, f0 = f(0.0);
+  if (f0 == 0.0 && inside(0.0)) return true;
+  for (int k = 1; k <= kSamples; ++k) {
+    const double t1 = static_cast<double>(k) / kSamples, f1 = f(t1);
+    if (f1 == 0.0 && inside(t1)) return true;
+    if ((f0 < 0) != (f1 < 0)) {
+      double lo = t0, hi = t1, flo = f0;
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi), fm = f(mid);
+        if ((fm < 0) == (flo < 0)) {
+          lo = mid;
+          flo = fm;
+        } else {
+          hi = mid;
+        }
+      }
+      if (inside(0.5 * (lo + hi))) return true;
+    }
+    t0 = t1;
+    f0 = f1;
+  }
+  return false;
+}
+
+}  // namespace
+
+int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) const {
+  // Motion of the contact vertices since the last search, at both ends of the step.
+  double since_search = std::numeric_limits<double>::infinity(), step_motion = 0.0;
+  if (x_search_.size() == x0.size()) {
+    since_search = 0.0;
+    for (int v : s_.vertices) {
+      since_search = std::max({since_search, (x0.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm(),
+                               (x1.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm()});
     }
   }
-  if (worst) *worst = m;
-  return m <= opt_.alarm_mm - opt_.contact_mm;
+  for (int v : s_.vertices) step_motion = std::max(step_motion, (x1.segment<3>(3 * v) - x0.segment<3>(3 * v)).norm());
+  auto test = [&](int i, int t) {
+    const int v = s_.vertices[i];
+    const auto& tri = s_.triangles[t];
+    const Eigen::Vector3d p[2] = {x0.segment<3>(3 * v), x1.segment<3>(3 * v)};
+    const Eigen::Vector3d a[2] = {x0.segment<3>(3 * tri[0]), x1.segment<3>(3 * tri[0])};
+    const Eigen::Vector3d b[2] = {x0.segment<3>(3 * tri[1]), x1.segment<3>(3 * tri[1])};
+    const Eigen::Vector3d c[2] = {x0.segment<3>(3 * tri[2]), x1.segment<3>(3 * tri[2])};
+    return vertex_triangle_crossing(p, a, b, c, s_.triangle_outward[t]);
+  };
+  if (since_search < 0.5 * opt_.margin_mm) {
+    for (const Candidate& c : candidates_) {
+      if (test(c.vertex, c.triangle)) return s_.vertices[c.vertex];
+    }
+    return -1;
+  }
+  // Swept boxes: every vertex's segment against every triangle's box over the step, in a grid.
+  const double h = std::max(opt_.alarm_mm + opt_.margin_mm, 2.0 * step_motion);
+  auto cell = [&](double v) { return static_cast<std::int64_t>(std::floor(v / h)); };
+  std::vector<std::pair<std::int64_t, int>> cells;
+  for (size_t i = 0; i < s_.vertices.size(); ++i) {
+    const Eigen::Vector3d m = 0.5 * (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i]));
+    cells.emplace_back(CellKey::of(m, h), static_cast<int>(i));
+  }
+  std::sort(cells.begin(), cells.end());
+  for (size_t t = 0; t < s_.triangles.size(); ++t) {
+    Eigen::Vector3d lo = x0.segment<3>(3 * s_.triangles[t][0]), hi = lo;
+    for (int k = 0; k < 3; ++k) {
+      for (const Eigen::VectorXd* x : {&x0, &x1}) {
+        lo = lo.cwiseMin(x->segment<3>(3 * s_.triangles[t][k]));
+        hi = hi.cwiseMax(x->segment<3>(3 * s_.triangles[t][k]));
+      }
+    }
+    // A vertex's segment midpoint is within step_motion / 2 of every point of it.
+    lo.array() -= 0.5 * step_motion + 1e-9;
+    hi.array() += 0.5 * step_motion + 1e-9;
+    for (std::int64_t I = cell(lo.x()); I <= cell(hi.x()); ++I) {
+      for (std::int64_t J = cell(lo.y()); J <= cell(hi.y()); ++J) {
+        for (std::int64_t K = cell(lo.z()); K <= cell(hi.z()); ++K) {
+          const std::int64_t key = CellKey::of_index(I, J, K);
+          for (auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(key, -1));
+               it != cells.end() && it->first == key; ++it) {
+            const int i = it->second;
+            const auto& tri = s_.triangles[t];
+            const int v = s_.vertices[i];
+            if (v == tri[0] || v == tri[1] || v == tri[2]) continue;
+            const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
+            bool excluded = false;
+            for (int k = 0; k < 3 && !excluded; ++k) {
+              Eigen::Vector2d d = s_.plane.row(s_.triangle_plane[t][k]).transpose() - pv;
+              if (s_.period > 0) d.x() -= s_.period * std::round(d.x() / s_.period);
+              excluded = d.norm() < opt_.exclusion_mm;
+            }
+            if (!excluded && test(i, static_cast<int>(t))) return v;
+          }
+        }
+      }
+    }
+  }
+  return -1;
 }
 
 void SelfContact::law(double d, double k, double* force, double* stiffness) const {

@@ -40,6 +40,9 @@ Plates make_plates(int n, double gap, double shift = 0.3) {
         p.surface.triangles.push_back({a, c, d});
         p.surface.triangle_plane.push_back({a, b, c});
         p.surface.triangle_plane.push_back({a, c, d});
+        // Normals +z: out of the lower plate (towards the upper), into the upper one.
+        p.surface.triangle_outward.push_back(k == 0 ? 1 : -1);
+        p.surface.triangle_outward.push_back(k == 0 ? 1 : -1);
       }
     }
   }
@@ -127,7 +130,7 @@ TEST(SelfContact, NeighboursInThePlaneAreExcluded) {
 // distance where the penalties balance the load, d = alarm - p / (2 stiffness_per_area) (vertices
 // of both plates push on the other's triangles), from either
 // an approach slow enough not to tunnel (larger steps are the simulator's business: it halves
-// steps that SelfContact::step_is_safe rejects).
+// steps that SelfContact::find_crossing catches).
 TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
   for (double dt : {1e-3}) {
     Plates p = make_plates(5, 1.5, 0.0);
@@ -162,24 +165,34 @@ TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
   }
 }
 
-TEST(SelfContact, FastStepNearContactIsUnsafe) {
+// Continuous collision detection: a plate moved through the other in one step is caught
+// (whether or not the Verlet list covers the step); a slow approach, a slide or a way back out
+// is not.
+TEST(SelfContact, CrossingInOneStepIsCaught) {
   Plates p = make_plates(4, 1.0);
   SelfContact c(p.surface, options());
   c.detect(p.x);
-  Eigen::VectorXd slow = p.x, fast = p.x;
+  Eigen::VectorXd slow = p.x, slide = p.x, through = p.x, far_through = p.x;
   for (int i = 16; i < 32; ++i) {
-    slow[3 * i + 2] -= 0.1;
-    fast[3 * i + 2] -= 1.5;  // through the other plate in one step
+    slow[3 * i + 2] -= 0.5;          // to 0.5 mm: approaching, not crossing
+    slide[3 * i] += 0.4;             // sideways at 1 mm
+    through[3 * i + 2] -= 1.5;       // to -0.5 mm: through the lower plate
+    far_through[3 * i + 2] -= 9.0;   // far beyond: the candidate list does not cover it
   }
-  double worst = 0;
-  EXPECT_TRUE(c.step_is_safe(p.x, slow, &worst));
-  EXPECT_NEAR(worst, 0.1, 1e-12);
-  EXPECT_FALSE(c.step_is_safe(p.x, fast, &worst));
-  // Far apart: no candidate, any step is safe.
+  EXPECT_EQ(c.find_crossing(p.x, slow), -1);
+  EXPECT_EQ(c.find_crossing(p.x, slide), -1);
+  const int v = c.find_crossing(p.x, through);
+  EXPECT_GE(v, 0);
+  EXPECT_GE(c.find_crossing(p.x, far_through), 0);
+  // Moving back out (from the lower plate's inner side to its outer side) is not a crossing.
+  EXPECT_EQ(c.find_crossing(through, p.x), -1);
+  // Plates far apart moving together: no crossing.
   Plates far = make_plates(4, 8.0);
   SelfContact c2(far.surface, options());
   c2.detect(far.x);
-  EXPECT_TRUE(c2.step_is_safe(far.x, far.x * 2.0, nullptr));
+  Eigen::VectorXd moved = far.x;
+  for (int i = 0; i < moved.size(); i += 3) moved[i] += 0.2;
+  EXPECT_EQ(c2.find_crossing(far.x, moved), -1);
 }
 
 TEST(SelfContact, BadOptions) {

@@ -50,10 +50,9 @@ struct ClosureOptions {
   /// Below the contact distance the contact stiffness grows to (1 + wall factor) x its value at
   /// zero distance (SelfContact), so that edge-on loads do not push free edges through.
   double contact_wall_factor = 100.0;
-  /// Retry (halve) a step that moves a node near the other leaflet by more than alarm - contact
-  /// distance (guards against tunnelling at large dt; off by default: on the valve it costs
-  /// many halvings and does not reduce the load-driven sinking, docs/forward-status.md).
-  bool contact_limit_motion = false;
+  /// Continuous collision detection at the end of every step (SelfContact::find_crossing): a
+  /// step that carries a vertex through a leaflet surface is retried with half the step.
+  bool contact_ccd = true;
   /// Inversion guard: volumetric barrier below this det F of an element's corner tetrahedron
   /// (ElasticBody::set_inversion_guard; 0 = off).
   double inversion_guard = 0.2;
@@ -79,6 +78,7 @@ struct ClosureSummary {
   std::string reason;  ///< why it failed, empty on success
   int steps = 0;       ///< steps taken (after halvings)
   int halvings = 0;    ///< step retries with a halved step
+  int crossings = 0;   ///< steps rejected by continuous collision detection (then halved)
   int newton_iterations = 0;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;

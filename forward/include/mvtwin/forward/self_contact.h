@@ -51,6 +51,9 @@ class SelfContact {
     double wall_factor = 0.0;  ///< extra stiffness below the contact distance (see above)
     double exclusion_mm = 4.0;
     double margin_mm = 1.5;
+    /// A vertex over a face on its inner side deeper than this is left to the leaflet's other
+    /// face (set it to about half the leaflet thickness).
+    double max_depth_mm = 0.6;
   };
   struct Pair {
     int vertex;                ///< node index
@@ -76,6 +79,9 @@ class SelfContact {
     /// Group of each triangle (the leaflet): a vertex pairs with the closest triangle of each
     /// group, so that a fold of its own leaflet cannot hide the other leaflet. Empty: one group.
     std::vector<int> triangle_group;
+    /// +1 when the triangle's normal (b - a) x (c - a) points out of the solid it bounds, -1
+    /// when it points in. Distances over a face are signed by it (negative inside the solid).
+    std::vector<signed char> triangle_outward;
     Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> plane;
     double period = 0.0;
   };
@@ -102,11 +108,13 @@ class SelfContact {
   /// Normal force (N) and stiffness (N/mm) of the law above at distance d for pair stiffness k.
   void law(double d, double k, double* force, double* stiffness) const;
 
-  /// False when a step from x0 to x1 moved a node of a candidate pair (a vertex and a triangle
-  /// within alarm + margin of each other) by more than alarm - contact distance: such a step
-  /// could carry a vertex through the zone where the penalty acts (tunnelling) and is to be
-  /// retried with a smaller step. `worst` receives the largest such motion.
-  bool step_is_safe(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1, double* worst) const;
+  /// Continuous collision detection over a step: every node moving linearly from x0 to x1, the
+  /// first contact vertex that passes through a contact triangle (not one of its neighbours),
+  /// or -1. Only candidate pairs can cross when no node has moved by more than margin / 2 from
+  /// the last search at either end (their distance changes by at most the sum of the motions);
+  /// otherwise the step's swept boxes are searched first. A step that carries a vertex through
+  /// the other leaflet (tunnelling, at large steps) is to be retried with a smaller step.
+  int find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) const;
 
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
@@ -122,9 +130,8 @@ class SelfContact {
   Surface s_;
   std::vector<Pair> pairs_;
   struct Candidate {
-    int vertex;        // index into the surface's vertices
+    int vertex;  // index into the surface's vertices
     int triangle;
-    signed char side;  // side of the triangle the vertex is on (+1 along its normal)
   };
   std::vector<Candidate> candidates_;            // by vertex
   Eigen::VectorXd x_search_;                     // positions at the last full search
