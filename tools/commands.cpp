@@ -1,4 +1,5 @@
 #include "commands.h"
+#include "progress.h"
 
 #include <cmath>
 #include <cstdio>
@@ -444,13 +445,15 @@ void register_commands(CLI::App& app, Context& ctx) {
                   << o.model.ures << " x " << o.model.vres << " grid, " << o.model.layers
                   << " layer(s), dt " << o.dt << " s, contact " << (o.contact ? "on" : "off")
                   << std::endl;
+        o.progress = progress_line("  closure");
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
         std::cout << r.summary.brief_report() << "\n";
         for (const auto& s : r.samples) {
           std::cout << "  t = " << fmt(s.time_s, 2) << " s: tips to annulus plane, anterior "
                     << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm)
                     << " mm; orifice " << fmt(s.orifice_area_mm2, 1) << " of "
-                    << fmt(s.annulus_area_mm2, 0) << " mm^2; closest contact "
+                    << fmt(s.annulus_area_mm2, 0) << " mm^2 (" << s.orifice_components
+                    << " opening" << (s.orifice_components == 1 ? "" : "s") << "); closest contact "
                     << fmt(s.min_contact_distance_mm, 2) << " mm\n";
         }
         if (!r.samples.empty()) {
@@ -461,6 +464,13 @@ void register_commands(CLI::App& app, Context& ctx) {
                     << fmt(100.0 * b.orifice_area_mm2 / std::max(b.annulus_area_mm2, 1e-9), 1)
                     << " % of the annulus opening); closest contact "
                     << fmt(r.summary.min_contact_distance_mm, 2) << " mm\n";
+        }
+        for (size_t c = 0; c < r.clip_gap_clipped_mm.size(); ++c) {
+          std::cout << "clip " << c + 1 << ": atrial surfaces " << fmt(r.clip_gap_clipped_mm[c], 2)
+                    << " mm apart after clipping";
+          if (c < r.clip_gap_end_mm.size())
+            std::cout << ", " << fmt(r.clip_gap_end_mm[c], 2) << " mm at the end";
+          std::cout << "\n";
         }
         if (!out->empty()) {
           SimulationRecord rec = forward::make_simulation_record(r, o, par);

@@ -4,6 +4,7 @@
 #include <functional>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
@@ -122,6 +123,54 @@ const std::map<std::string, Field>& fields() {
                      }
                    },
                    [](const ClosureOptions& o) { return std::string(name(o.solver)); }};
+    // Lists: clips as "s_a,t_a,s_p,t_p[,k];..." and ruptured chordae as "i,j,...".
+    m["clips"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
+                    o.clips.clear();
+                    std::stringstream all(v);
+                    std::string one;
+                    while (std::getline(all, one, ';')) {
+                      if (one.empty()) continue;
+                      std::vector<double> x;
+                      std::stringstream parts(one);
+                      std::string item;
+                      while (std::getline(parts, item, ',')) x.push_back(to_double(k, item));
+                      if (x.size() != 4 && x.size() != 5) {
+                        throw Error("--set " + k + ": a clip is s_anterior,t_anterior,"
+                                    "s_posterior,t_posterior[,stiffness N/mm], got '" + one + "'");
+                      }
+                      ClipOptions c;
+                      c.anterior_s = x[0];
+                      c.anterior_t = x[1];
+                      c.posterior_s = x[2];
+                      c.posterior_t = x[3];
+                      if (x.size() == 5) c.stiffness_n_per_mm = x[4];
+                      o.clips.push_back(c);
+                    }
+                  },
+                  [](const ClosureOptions& o) {
+                    std::string out;
+                    for (const ClipOptions& c : o.clips) {
+                      out += (out.empty() ? "" : ";") + str(c.anterior_s) + "," + str(c.anterior_t) +
+                             "," + str(c.posterior_s) + "," + str(c.posterior_t) + "," +
+                             str(c.stiffness_n_per_mm);
+                    }
+                    return out;
+                  }};
+    m["ruptured_marginal_chordae"] = {
+        [](ClosureOptions& o, const std::string& k, const std::string& v) {
+          o.ruptured_marginal_chordae.clear();
+          std::stringstream parts(v);
+          std::string item;
+          while (std::getline(parts, item, ',')) {
+            if (!item.empty()) o.ruptured_marginal_chordae.push_back(to_int(k, item));
+          }
+        },
+        [](const ClosureOptions& o) {
+          std::string out;
+          for (int i : o.ruptured_marginal_chordae) out += (out.empty() ? "" : ",") + std::to_string(i);
+          return out;
+        }};
+    dbl("clip_closing_s", [](ClosureOptions& o) -> double& { return o.clip_closing_s; });
     return m;
   }();
   return f;

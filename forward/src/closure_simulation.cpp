@@ -16,6 +16,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
+#include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/interpenetration.h"
 #include "mvtwin/forward/self_contact.h"
@@ -28,81 +29,6 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
-
-double smoothstep(double x) {
-  x = std::clamp(x, 0.0, 1.0);
-  return x * x * (3.0 - 2.0 * x);
-}
-
-/// The prescribed boundary (annulus, papillary tips, landmarks) over the simulated time,
-/// interpolated between image frames by Catmull-Rom (C1 in time).
-class BoundaryMotion {
- public:
-  BoundaryMotion(const ValveSequence& s, int ures, double stretch, bool annulus_motion,
-                 bool papillary_motion)
-      : seq_(s),
-        stretch_(stretch),
-        annulus_motion_(annulus_motion),
-        papillary_motion_(papillary_motion) {
-    for (const ValveFrame& f : s.frames) annulus_.push_back(resample_closed_curve(f.annulus, ures));
-  }
-  double duration() const {
-    return stretch_ *
-           (seq_.frames[seq_.first_closed].time_s - seq_.frames[seq_.end_diastole].time_s);
-  }
-  double observed_time(double tau) const {
-    return seq_.frames[seq_.end_diastole].time_s + tau / stretch_;
-  }
-
-  // Catmull-Rom weights over frames (f-1, f, f+1, f+2) at observed time t.
-  void weights(double t, int* f, Eigen::Vector4d* w) const {
-    const int n = seq_.num_frames();
-    int i = seq_.end_diastole;
-    while (i + 1 < n - 1 && seq_.frames[i + 1].time_s <= t) ++i;
-    while (i > 0 && seq_.frames[i].time_s > t) --i;
-    const double t0 = seq_.frames[i].time_s, t1 = seq_.frames[std::min(i + 1, n - 1)].time_s;
-    const double x = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 0.0;
-    const double x2 = x * x, x3 = x2 * x;
-    *f = i;
-    *w << -0.5 * x3 + x2 - 0.5 * x, 1.5 * x3 - 2.5 * x2 + 1.0, -1.5 * x3 + 2.0 * x2 + 0.5 * x,
-        0.5 * x3 - 0.5 * x2;
-  }
-  int clampf(int i) const { return std::clamp(i, 0, seq_.num_frames() - 1); }
-
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus(double tau) const {
-    if (!annulus_motion_) return annulus_[seq_.end_diastole];
-    int f;
-    Eigen::Vector4d w;
-    weights(observed_time(tau), &f, &w);
-    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a = w[0] * annulus_[clampf(f - 1)];
-    for (int k = 1; k < 4; ++k) a += w[k] * annulus_[clampf(f - 1 + k)];
-    return a;
-  }
-  Eigen::Vector3d landmark(Landmark l, double tau) const {
-    const bool papillary =
-        l == Landmark::kAnterolateralPapillaryTip || l == Landmark::kPosteromedialPapillaryTip;
-    if ((papillary && !papillary_motion_) || (!papillary && !annulus_motion_)) {
-      return seq_.frames[seq_.end_diastole].landmark(l);
-    }
-    int f;
-    Eigen::Vector4d w;
-    weights(observed_time(tau), &f, &w);
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 4; ++k) {
-      const ValveFrame& fr = seq_.frames[clampf(f - 1 + k)];
-      // An unobserved neighbour falls back to the nearest observed frame of the window.
-      p += w[k] * (fr.observed(l) ? fr.landmark(l) : seq_.frames[clampf(f + (k >= 2))].landmark(l));
-    }
-    return p;
-  }
-  bool observed_at_ed(Landmark l) const { return seq_.frames[seq_.end_diastole].observed(l); }
-
- private:
-  const ValveSequence& seq_;
-  double stretch_;
-  bool annulus_motion_, papillary_motion_;
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> annulus_;
-};
 
 }  // namespace
 
@@ -122,6 +48,17 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (refactor_iterations < 1) return bad("refactor_iterations must be >= 1");
   if (!(inversion_guard >= 0 && inversion_guard < 1))
     return bad("inversion_guard must be in [0, 1) (0: off)");
+  if (!(clip_closing_s > 0 && clip_closing_s <= 100))
+    return bad("clip_closing_s must be in (0, 100] s");
+  for (const ClipOptions& c : clips) {
+    if (!(c.anterior_s >= 0 && c.anterior_s <= 1 && c.posterior_s >= 0 && c.posterior_s <= 1 &&
+          c.anterior_t >= 0 && c.anterior_t <= 1 && c.posterior_t >= 0 && c.posterior_t <= 1))
+      return bad("clip sites must have s and t in [0, 1]");
+    if ((c.anterior_s < 0.5) == (c.posterior_s < 0.5))
+      return bad("a clip joins the anterior (s < 0.5) and the posterior (s >= 0.5) leaflet");
+    if (!(c.stiffness_n_per_mm > 0 && c.stiffness_n_per_mm < 1e4))
+      return bad("clip stiffness must be in (0, 1e4) N/mm");
+  }
   if (!(contact_wall_factor >= 0 && contact_wall_factor <= 1e4))
     return bad("contact_wall_factor must be in [0, 1e4]");
   if (newton_iterations < 1 || newton_iterations > 100)
@@ -169,105 +106,40 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         "closure simulation: the sequence needs an end-diastolic frame before a first closed "
         "frame");
   }
-  const ValveModel model = build_valve_model(seq, opt.model);
+  const ClosureScene scene = make_closure_scene(seq, params, opt);
+  const ValveModel& model = scene.model;
   const SolidMesh& mesh = model.mesh;
   ElasticBody body(mesh, [&](int tag) {
-    return tag == static_cast<int>(LeafletTag::kAnterior)
-               ? TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale)
-               : TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale);
+    return scene.leaflet_material[tag == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1];
   });
   body.set_inversion_guard(opt.inversion_guard);
   const int n = mesh.num_nodes(), ndof = 3 * n;
-  const int U = opt.model.ures, V = opt.model.vres, L = opt.model.layers;
-  const BoundaryMotion motion(seq, U, opt.stretch, opt.annulus_motion, opt.papillary_motion);
-  const double T = motion.duration();
+  const int U = opt.model.ures, V = opt.model.vres;
+  const double T = scene.duration();
 
-  // Chordae with their rest lengths and laws.
+  // Two-point force elements: chordae (to a papillary tip) and clip springs (between two
+  // cross-sections); each end is the mean of a node set or a prescribed point.
   struct Cable {
-    std::vector<int> nodes;  // the insertion point is their mean
-    int tip;
-    double rest;
-    ChordaLaw law;
+    std::vector<int> a, b;  // node sets; b empty: the far end is papillary tip `tip`
+    int tip = -1;
+    double rest = 0.0;
+    const ChordaLaw* law = nullptr;  // null: linear spring of stiffness k
+    double k = 0.0;
   };
   std::vector<Cable> cables;
-  {
-    int marginal_index = 0;
-    for (const ModelChorda& c : model.chordae) {
-      if (c.marginal) {
-        const int k = marginal_index++;
-        if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(),
-                      k) != opt.ruptured_marginal_chordae.end()) {
-          continue;
-        }
-      }
-      const double factor = params.restlength_factor[static_cast<int>(c.group)];
-      const ChordaLaw law =
-          c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
-                     : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
-      cables.push_back({c.nodes, c.papillary, c.ed_length * factor, law});
-    }
-  }
+  for (const SceneChorda& c : scene.chordae) cables.push_back({c.nodes, {}, c.tip, c.rest_length, &c.law, 0.0});
+  const int first_spring = static_cast<int>(cables.size());
+  for (const SceneSpring& sp : scene.springs)
+    cables.push_back({sp.a, sp.b, -1, sp.rest_length, nullptr, sp.stiffness});
 
-  // Prescribed nodes follow the displacement of their annulus grid points.
-  std::map<int, int> corner_u;  // annulus corner node -> u
-  for (int l = 0; l <= L; ++l) {
-    for (int u = 0; u < U; ++u) corner_u[model.node(model.annulus_column[u], l)] = u;
-  }
-  struct Prescribed {
-    int node, ua, ub;
-  };
-  std::vector<Prescribed> prescribed;
   std::vector<char> fixed(ndof, 0);
-  std::map<int, std::pair<int, int>> mid_of_annulus;  // prescribed mid-edge node -> its edge
-  for (const auto& [edge, mid] : mesh.mid_edge) {
-    if (corner_u.count(edge.first) && corner_u.count(edge.second)) mid_of_annulus[mid] = edge;
-  }
-  for (int node : model.annulus_nodes) {
-    int ua, ub;
-    if (corner_u.count(node)) {
-      ua = ub = corner_u.at(node);
-    } else {
-      const auto& edge = mid_of_annulus.at(node);
-      ua = corner_u.at(edge.first);
-      ub = corner_u.at(edge.second);
-    }
-    prescribed.push_back({node, ua, ub});
-    fixed[3 * node] = fixed[3 * node + 1] = fixed[3 * node + 2] = 1;
-  }
-  std::vector<int> to_free(ndof, -1), free_dofs;
+  for (const PrescribedNode& pr : scene.prescribed)
+    fixed[3 * pr.node] = fixed[3 * pr.node + 1] = fixed[3 * pr.node + 2] = 1;
+  std::vector<int> free_dofs;
   for (int i = 0; i < ndof; ++i) {
-    if (!fixed[i]) {
-      to_free[i] = static_cast<int>(free_dofs.size());
-      free_dofs.push_back(i);
-    }
+    if (!fixed[i]) free_dofs.push_back(i);
   }
-  const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus_ed = motion.annulus(0.0);
   const Eigen::VectorXd X = body.rest_positions();
-  auto prescribed_positions = [&](double tau, Eigen::VectorXd* x) {
-    const auto a = motion.annulus(tau);
-    for (const Prescribed& p : prescribed) {
-      const Eigen::Vector3d d =
-          0.5 *
-          ((a.row(p.ua) - annulus_ed.row(p.ua)) + (a.row(p.ub) - annulus_ed.row(p.ub))).transpose();
-      x->segment<3>(3 * p.node) = X.segment<3>(3 * p.node) + d;
-    }
-  };
-
-  // Pressure faces: consistent nodal weights (corners for linear, mid-edges for quadratic).
-  struct PressureFace {
-    int a, b, c;
-    int load[3];
-  };
-  std::vector<PressureFace> pfaces;
-  for (const Eigen::Vector3i& f : model.ventricular_faces) {
-    PressureFace pf{f[0], f[1], f[2], {f[0], f[1], f[2]}};
-    if (mesh.order == TetOrder::kQuadratic) {
-      pf.load[0] = mesh.mid_node(f[0], f[1]);
-      pf.load[1] = mesh.mid_node(f[1], f[2]);
-      pf.load[2] = mesh.mid_node(f[0], f[2]);
-    }
-    pfaces.push_back(pf);
-  }
 
   const Eigen::VectorXd mass = body.lumped_mass(opt.density);
   Eigen::VectorXd mass_dof(ndof);
@@ -302,16 +174,17 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
           body.gradient(x, &g, &r, &e) < 0 ? e : std::numeric_limits<double>::quiet_NaN();
     }
     s.time_s = tau;
-    s.observed_time_s = motion.observed_time(tau);
+    s.observed_time_s = scene.observed_time(std::max(tau, 0.0));
     s.la_surface = sample_atrial(sampler, x);
     ValveFrame fr;
     fr.annulus = s.la_surface.points().topRows(U);
     for (int l = 0; l < kNumLandmarks; ++l) {
       const Landmark lm = static_cast<Landmark>(l);
       fr.landmark_observed[l] =
-          l <= index(Landmark::kPosteromedialCommissure) && motion.observed_at_ed(lm);
+          l <= index(Landmark::kPosteromedialCommissure) && scene.observed_at_end_diastole(lm);
       fr.landmarks[l] =
-          fr.landmark_observed[l] ? motion.landmark(lm, tau) : Eigen::Vector3d::Constant(NAN);
+          fr.landmark_observed[l] ? scene.landmark(lm, std::max(tau, 0.0))
+                                  : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     }
     fr.la_surface = s.la_surface;
     const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
@@ -341,17 +214,22 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
 
   // The step matrix on a fixed pattern: every element, and each chorda's insertion nodes.
   std::vector<char> node_free(n, 1);
-  for (const Prescribed& pr : prescribed) node_free[pr.node] = 0;
+  for (const PrescribedNode& pr : scene.prescribed) node_free[pr.node] = 0;
   std::vector<std::vector<int>> cliques = body.element_cliques();
   const int first_cable_clique = static_cast<int>(cliques.size());
-  for (const Cable& cb : cables) cliques.push_back(cb.nodes);
+  for (const Cable& cb : cables) {
+    std::vector<int> c = cb.a;
+    c.insert(c.end(), cb.b.begin(), cb.b.end());
+    cliques.push_back(c);
+  }
   SymmetricBlockMatrix system(node_free, cliques);
   if (system.rows() != static_cast<int>(free_dofs.size()))
     throw Error("closure simulation: internal error (free dofs and system rows differ)");
   StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations,
                      opt.refactor_iterations});
 
-  // The linearization of one step: element rotations, chordae tangents at the insertions.
+  // The linearization of one step: element rotations, each cable's 3x3 tangent (its Hessian
+  // with respect to either end point).
   ElementRotations rot, rot_at_factor;
   std::vector<Eigen::Matrix3d> cable_tangent(cables.size());
   // Rotation of each node's neighbourhood since the last factorization (rotated
@@ -373,18 +251,38 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   };
   Eigen::VectorXd p_all = Eigen::VectorXd::Zero(ndof), y_all(ndof);
 
+  // Clip phase (SPEC Sec. 5), simulated time [-clip_closing_s, 0): pressure off, annulus and
+  // papillary tips held at end-diastole, each clip's rest length closing smoothly from the
+  // sites' distance at rest to its target; the closure then starts from the clipped valve.
+  const double clip_phase = scene.springs.empty() ? 0.0 : opt.clip_closing_s;
+  std::vector<double> spring_start(cables.size(), 0.0);
+  auto mean_of = [](const std::vector<int>& nodes, const Eigen::VectorXd& at) {
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (int k : nodes) m += at.segment<3>(3 * k);
+    return Eigen::Vector3d(m / static_cast<double>(nodes.size()));
+  };
+  for (size_t c = first_spring; c < cables.size(); ++c)
+    spring_start[c] = (mean_of(cables[c].a, X) - mean_of(cables[c].b, X)).norm();
+  auto cable_rest = [&](size_t c, double tau) {
+    if (static_cast<int>(c) < first_spring || tau >= 0.0) return cables[c].rest;
+    const double q = 1.0 - std::min(1.0, -tau / clip_phase);  // 0 at the phase's start
+    const double w = q * q * (3.0 - 2.0 * q);
+    return std::max(cables[c].rest, (1.0 - w) * spring_start[c] + w * cables[c].rest);
+  };
+
   // One implicit Euler step from (x, v) at tau to tau + h; false with a reason on failure.
   auto step = [&](double tau, double h, Eigen::VectorXd* x_io, Eigen::VectorXd* v_io,
                   std::string* why) -> bool {
     const Eigen::VectorXd x0 = *x_io, v0 = *v_io;
     const double tau1 = tau + h;
-    const double p = params.peak_pressure_mpa * smoothstep(tau1 / T);
-    const Eigen::Vector3d tips[2] = {motion.landmark(Landmark::kAnterolateralPapillaryTip, tau1),
-                                     motion.landmark(Landmark::kPosteromedialPapillaryTip, tau1)};
+    const double scene_time = std::max(tau1, 0.0);  // the clip phase holds end-diastole
+    const double p = tau1 < 0.0 ? 0.0 : scene.pressure(tau1);
+    const Eigen::Vector3d tips[2] = {scene.papillary_tip(0, scene_time),
+                                     scene.papillary_tip(1, scene_time)};
     Eigen::VectorXd xp1 = x0;
-    prescribed_positions(tau1, &xp1);
+    scene.prescribed_positions(scene_time, &xp1);
     Eigen::VectorXd v1 = v0;
-    for (const Prescribed& pr : prescribed)
+    for (const PrescribedNode& pr : scene.prescribed)
       v1.segment<3>(3 * pr.node) = (xp1 - x0).segment<3>(3 * pr.node) / h;
     const double ck = h * opt.rayleigh_stiffness + h * h;  // K's factor in the step matrix
     const double cm = 1.0 + h * opt.rayleigh_mass;          // M's factor
@@ -396,11 +294,11 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       y_all *= ck;
       for (size_t c = 0; c < cables.size(); ++c) {
         const Cable& cb = cables[c];
-        const double w = 1.0 / static_cast<double>(cb.nodes.size());
-        Eigen::Vector3d s = Eigen::Vector3d::Zero();
-        for (int k : cb.nodes) s += w * p_all.segment<3>(3 * k);
-        const Eigen::Vector3d t = h * h * w * (cable_tangent[c] * s);
-        for (int k : cb.nodes) y_all.segment<3>(3 * k) += t;
+        Eigen::Vector3d d = mean_of(cb.a, p_all);
+        if (!cb.b.empty()) d -= mean_of(cb.b, p_all);
+        const Eigen::Vector3d t = h * h * (cable_tangent[c] * d);
+        for (int k : cb.a) y_all.segment<3>(3 * k) += t / static_cast<double>(cb.a.size());
+        for (int k : cb.b) y_all.segment<3>(3 * k) -= t / static_cast<double>(cb.b.size());
       }
       if (contact) contact->multiply(p_all, h * h, h, &y_all);
       y->resize(pf.size());
@@ -416,11 +314,15 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       system.set_zero();
       body.assemble_tangent(rot, ck, &system);
       for (size_t c = 0; c < cables.size(); ++c) {
-        const int m = static_cast<int>(cables[c].nodes.size());
-        const double w = 1.0 / m;
+        const Cable& cb = cables[c];
+        const int ma = static_cast<int>(cb.a.size()), m = ma + static_cast<int>(cb.b.size());
         Eigen::MatrixXd K(3 * m, 3 * m);
         for (int i = 0; i < m; ++i) {
-          for (int j = 0; j < m; ++j) K.block<3, 3>(3 * i, 3 * j) = w * w * cable_tangent[c];
+          const double wi = i < ma ? 1.0 / ma : -1.0 / (m - ma);
+          for (int j = 0; j < m; ++j) {
+            const double wj = j < ma ? 1.0 / ma : -1.0 / (m - ma);
+            K.block<3, 3>(3 * i, 3 * j) = wi * wj * cable_tangent[c];
+          }
         }
         system.add_clique(first_cable_clique + static_cast<int>(c), K, h * h);
       }
@@ -462,11 +364,13 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         const Cable& cb = cables[c];
         Eigen::Matrix<double, 6, 1> gc;
         Eigen::Matrix<double, 6, 6> Hc;
-        const double w = 1.0 / static_cast<double>(cb.nodes.size());
-        Eigen::Vector3d ins = Eigen::Vector3d::Zero();
-        for (int k : cb.nodes) ins += w * x1.segment<3>(3 * k);
-        chorda_gradient(cb.law, cb.rest, ins, tips[cb.tip], &gc, &Hc);
-        for (int a : cb.nodes) f.segment<3>(3 * a) -= w * gc.head<3>();
+        const double rest = cable_rest(c, tau1);
+        // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
+        const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
+        const Eigen::Vector3d end = cb.b.empty() ? tips[cb.tip] : mean_of(cb.b, x1);
+        chorda_gradient(law, rest, mean_of(cb.a, x1), end, &gc, &Hc);
+        for (int k : cb.a) f.segment<3>(3 * k) -= gc.head<3>() / static_cast<double>(cb.a.size());
+        for (int k : cb.b) f.segment<3>(3 * k) -= gc.tail<3>() / static_cast<double>(cb.b.size());
         cable_tangent[c] = Hc.topLeftCorner<3, 3>();
       }
       if (contact) {
@@ -477,7 +381,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
         contact->add_forces(v1, &f);
         sum.contact_s += seconds_since(tc);
       }
-      for (const PressureFace& pf : pfaces) {
+      for (const PressureFace& pf : scene.pressure_faces) {
         const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b),
                               c = x1.segment<3>(3 * pf.c);
         const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
@@ -587,21 +491,23 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
 
-  record(0.0, x, v);
-  double tau = 0.0;
+  double tau = -clip_phase;
+  if (tau >= 0.0) record(0.0, x, v);
   int step_index = 0;
   while (tau < T - 1e-12) {
-    double h = std::min(opt.dt, T - tau);
+    // Steps land on t = 0, where the clip phase ends and the closure is first recorded.
+    double h = std::min(opt.dt, tau < 0.0 ? -tau : T - tau);
     std::string why;
     int halvings = 0;
     Eigen::VectorXd xt = x, vt = v;
     while (!step(tau, h, &xt, &vt, &why)) {
       if (halvings >= opt.max_step_halvings) {
         sum.status = ClosureStatus::kFailed;
-        sum.reason = why + " at t = " + std::to_string(tau) + " s (after " +
-                     std::to_string(halvings) + " step halvings)";
+        sum.reason = why + " at t = " + std::to_string(tau) + " s" +
+                     (tau < 0 ? " (clip phase)" : "") + " (after " + std::to_string(halvings) +
+                     " step halvings)";
         result.positions = x;
-        record(tau, x, v);
+        record(std::max(tau, 0.0), x, v);
         finish();
         return result;
       }
@@ -611,16 +517,30 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       xt = x;
       vt = v;
     }
+    const bool clip_phase_ends = tau < 0.0 && tau + h >= -1e-12;
     x = xt;
     v = vt;
     tau += h;
     ++sum.steps;
+    if (clip_phase_ends) {
+      tau = 0.0;
+      record(0.0, x, v);
+      for (size_t c = first_spring; c < cables.size(); ++c)
+        result.clip_gap_clipped_mm.push_back(
+            (x.segment<3>(3 * cables[c].a.front()) - x.segment<3>(3 * cables[c].b.front())).norm());
+      continue;
+    }
+    if (tau < 0.0) continue;
     ++step_index;
+    if (opt.progress) opt.progress(tau, T);
     if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12)
       record(tau, x, v);
   }
   record(tau, x, v);
   result.positions = x;
+  for (size_t c = first_spring; c < cables.size(); ++c)
+    result.clip_gap_end_mm.push_back(
+        (x.segment<3>(3 * cables[c].a.front()) - x.segment<3>(3 * cables[c].b.front())).norm());
   sum.status = ClosureStatus::kConverged;
   finish();
   return result;

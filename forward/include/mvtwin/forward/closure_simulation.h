@@ -1,4 +1,5 @@
 #pragma once
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,16 @@
 #include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
+
+/// A MitraClip (SPEC Sec. 5): a stiff tension-only spring between a site on each leaflet, in
+/// grid coordinates (s in [0, 1) around the annulus from the anterolateral commissure, anterior
+/// for s < 0.5; t from the annulus (0) to the free edge (1)). It holds the two cross-sections
+/// so that their atrial surfaces are the contact distance apart.
+struct ClipOptions {
+  double anterior_s = 0.25, anterior_t = 1.0;
+  double posterior_s = 0.75, posterior_t = 1.0;
+  double stiffness_n_per_mm = 9.80665;  ///< 1000 gf/mm (Mansi et al. 2012)
+};
 
 /// Options of a closure simulation (SPEC Sec. 4). Units: s, t/mm^3, 1/s.
 struct ClosureOptions {
@@ -56,6 +67,13 @@ struct ClosureOptions {
   /// Inversion guard: volumetric barrier below this det F of an element's corner tetrahedron
   /// (ElasticBody::set_inversion_guard; 0 = off).
   double inversion_guard = 0.2;
+  /// Clips. With any, a clip phase of clip_closing_s (simulated) comes first: pressure off,
+  /// annulus and papillary tips held at end-diastole, the clips closing smoothly from the sites'
+  /// distance to their target; the closure then starts from the clipped valve.
+  std::vector<ClipOptions> clips;
+  double clip_closing_s = 0.5;
+  /// Called after every step of the closure with the simulated time and the duration (s).
+  std::function<void(double t, double duration)> progress;
   /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
   std::vector<int> ruptured_marginal_chordae;
   /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
@@ -128,6 +146,9 @@ struct ClosureResult {
   /// Mises stress of the material's response to it, MPa.
   TetMesh rest_mesh;
   Eigen::VectorXd element_strain, element_stress_mpa;
+  /// Per clip: distance between its two sites' atrial surface nodes at the end of the clip
+  /// phase and at the end, mm.
+  std::vector<double> clip_gap_clipped_mm, clip_gap_end_mm;
 };
 
 /// Simulates the closure of `sequence` from end-diastole to the first closed frame with the

@@ -1,0 +1,219 @@
+#include "mvtwin/forward/closure_scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <string>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/forward/closure_simulation.h"
+
+namespace mvtwin::forward {
+namespace {
+
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
+/// The cross-section of the leaflet at surface node i: the node on every layer and the mid-edge
+/// nodes between layers (quadratic meshes).
+std::vector<int> cross_section(const ValveModel& m, int i) {
+  std::vector<int> nodes;
+  for (int l = 0; l <= m.options.layers; ++l) {
+    nodes.push_back(m.node(i, l));
+    if (l > 0 && m.mesh.order == TetOrder::kQuadratic) {
+      const int mid = m.mesh.mid_node(m.node(i, l - 1), m.node(i, l));
+      if (mid >= 0) nodes.push_back(mid);
+    }
+  }
+  return nodes;
+}
+
+/// Surface node nearest to grid site (s, t) in the unrolled plane.
+int nearest_surface_node(const ValveModel& m, double s, double t) {
+  s -= std::floor(s);
+  int best = -1;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < m.surface_nodes; ++i) {
+    double ds = m.surface_st(i, 0) - s;
+    ds -= std::round(ds);
+    const double d = std::hypot(ds * m.perimeter, (m.surface_st(i, 1) - t) * 20.0);
+    if (d < best_d) {
+      best_d = d;
+      best = i;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+double ClosureScene::observed_time(double tau) const {
+  return sequence_.frames[sequence_.end_diastole].time_s + tau / stretch_;
+}
+
+double ClosureScene::pressure(double tau) const {
+  return peak_pressure_mpa * smoothstep(duration_ > 0 ? tau / duration_ : 1.0);
+}
+
+int ClosureScene::clamp_frame(int i) const {
+  return std::clamp(i, 0, sequence_.num_frames() - 1);
+}
+
+// Catmull-Rom weights over frames (f-1, f, f+1, f+2) at observed time t: the prescribed motion
+// is C1 in time between the image frames.
+void ClosureScene::weights(double t, int* f, Eigen::Vector4d* w) const {
+  const int n = sequence_.num_frames();
+  int i = sequence_.end_diastole;
+  while (i + 1 < n - 1 && sequence_.frames[i + 1].time_s <= t) ++i;
+  while (i > 0 && sequence_.frames[i].time_s > t) --i;
+  const double t0 = sequence_.frames[i].time_s,
+               t1 = sequence_.frames[std::min(i + 1, n - 1)].time_s;
+  const double x = t1 > t0 ? std::clamp((t - t0) / (t1 - t0), 0.0, 1.0) : 0.0;
+  const double x2 = x * x, x3 = x2 * x;
+  *f = i;
+  *w << -0.5 * x3 + x2 - 0.5 * x, 1.5 * x3 - 2.5 * x2 + 1.0, -1.5 * x3 + 2.0 * x2 + 0.5 * x,
+      0.5 * x3 - 0.5 * x2;
+}
+
+Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> ClosureScene::annulus(double tau) const {
+  if (!annulus_motion_) return annulus_[sequence_.end_diastole];
+  int f;
+  Eigen::Vector4d w;
+  weights(observed_time(tau), &f, &w);
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> a = w[0] * annulus_[clamp_frame(f - 1)];
+  for (int k = 1; k < 4; ++k) a += w[k] * annulus_[clamp_frame(f - 1 + k)];
+  return a;
+}
+
+Eigen::Vector3d ClosureScene::landmark(Landmark l, double tau) const {
+  const bool papillary =
+      l == Landmark::kAnterolateralPapillaryTip || l == Landmark::kPosteromedialPapillaryTip;
+  if ((papillary && !papillary_motion_) || (!papillary && !annulus_motion_)) {
+    return sequence_.frames[sequence_.end_diastole].landmark(l);
+  }
+  int f;
+  Eigen::Vector4d w;
+  weights(observed_time(tau), &f, &w);
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 4; ++k) {
+    const ValveFrame& fr = sequence_.frames[clamp_frame(f - 1 + k)];
+    // An unobserved neighbour falls back to the nearest observed frame of the window.
+    p += w[k] * (fr.observed(l) ? fr.landmark(l)
+                                : sequence_.frames[clamp_frame(f + (k >= 2))].landmark(l));
+  }
+  return p;
+}
+
+bool ClosureScene::observed_at_end_diastole(Landmark l) const {
+  return sequence_.frames[sequence_.end_diastole].observed(l);
+}
+
+Eigen::Vector3d ClosureScene::papillary_tip(int k, double tau) const {
+  return landmark(k == 0 ? Landmark::kAnterolateralPapillaryTip
+                         : Landmark::kPosteromedialPapillaryTip,
+                  tau);
+}
+
+void ClosureScene::prescribed_positions(double tau, Eigen::VectorXd* x) const {
+  const auto a = annulus(tau);
+  for (const PrescribedNode& p : prescribed) {
+    const Eigen::Vector3d d =
+        0.5 * ((a.row(p.ua) - annulus_ed_.row(p.ua)) + (a.row(p.ub) - annulus_ed_.row(p.ub)))
+                  .transpose();
+    x->segment<3>(3 * p.node) = model.mesh.V.row(p.node).transpose() + d;
+  }
+}
+
+ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters& params,
+                                const ClosureOptions& opt) {
+  std::string err;
+  if (!opt.is_valid(&err)) throw Error("closure options: " + err);
+  if (seq.first_closed <= seq.end_diastole || seq.end_diastole < 0) {
+    throw Error(
+        "closure simulation: the sequence needs an end-diastolic frame before a first closed "
+        "frame");
+  }
+  ClosureScene sc;
+  sc.model = build_valve_model(seq, opt.model);
+  const ValveModel& model = sc.model;
+  const SolidMesh& mesh = model.mesh;
+  sc.leaflet_material = {TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale),
+                         TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale)};
+  sc.sequence_ = seq;
+  sc.stretch_ = opt.stretch;
+  sc.annulus_motion_ = opt.annulus_motion;
+  sc.papillary_motion_ = opt.papillary_motion;
+  sc.duration_ = opt.stretch * (seq.frames[seq.first_closed].time_s - seq.frames[seq.end_diastole].time_s);
+  if (!(sc.duration_ > 0)) throw Error("closure simulation: the closure lasts no time");
+  const int U = opt.model.ures, L = opt.model.layers;
+  for (const ValveFrame& f : seq.frames) sc.annulus_.push_back(resample_closed_curve(f.annulus, U));
+  sc.annulus_ed_ = sc.annulus(0.0);
+  sc.peak_pressure_mpa = params.peak_pressure_mpa;
+
+  // Chordae with their rest lengths and laws (ruptured marginal chordae left out).
+  int marginal_index = 0;
+  for (const ModelChorda& c : model.chordae) {
+    if (c.marginal) {
+      const int k = marginal_index++;
+      if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(),
+                    k) != opt.ruptured_marginal_chordae.end()) {
+        continue;
+      }
+    }
+    SceneChorda ch;
+    ch.nodes = c.nodes;
+    ch.tip = c.papillary;
+    ch.rest_length = c.ed_length * params.restlength_factor[static_cast<int>(c.group)];
+    ch.law = c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
+                        : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
+    ch.group = c.group;
+    ch.marginal = c.marginal;
+    sc.chordae.push_back(ch);
+  }
+
+  // Clips: between the cross-sections at the two sites, held at the distance of the two
+  // cross-sections' mid-planes when their atrial surfaces are the contact distance apart.
+  for (const ClipOptions& clip : opt.clips) {
+    SceneSpring sp;
+    sp.a = cross_section(model, nearest_surface_node(model, clip.anterior_s, clip.anterior_t));
+    sp.b = cross_section(model, nearest_surface_node(model, clip.posterior_s, clip.posterior_t));
+    sp.stiffness = clip.stiffness_n_per_mm;
+    sp.rest_length = 0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) +
+                     opt.contact_distance_mm;
+    sc.springs.push_back(sp);
+  }
+
+  // Prescribed nodes follow the displacement of their annulus grid points.
+  std::map<int, int> corner_u;  // annulus corner node -> u
+  for (int l = 0; l <= L; ++l) {
+    for (int u = 0; u < U; ++u) corner_u[model.node(model.annulus_column[u], l)] = u;
+  }
+  std::map<int, std::pair<int, int>> mid_of_annulus;  // prescribed mid-edge node -> its edge
+  for (const auto& [edge, mid] : mesh.mid_edge) {
+    if (corner_u.count(edge.first) && corner_u.count(edge.second)) mid_of_annulus[mid] = edge;
+  }
+  for (int node : model.annulus_nodes) {
+    if (corner_u.count(node)) {
+      sc.prescribed.push_back({node, corner_u.at(node), corner_u.at(node)});
+    } else {
+      const auto& edge = mid_of_annulus.at(node);
+      sc.prescribed.push_back({node, corner_u.at(edge.first), corner_u.at(edge.second)});
+    }
+  }
+
+  for (const Eigen::Vector3i& f : model.ventricular_faces) {
+    PressureFace pf{f[0], f[1], f[2], {f[0], f[1], f[2]}};
+    if (mesh.order == TetOrder::kQuadratic) {
+      pf.load[0] = mesh.mid_node(f[0], f[1]);
+      pf.load[1] = mesh.mid_node(f[1], f[2]);
+      pf.load[2] = mesh.mid_node(f[0], f[2]);
+    }
+    sc.pressure_faces.push_back(pf);
+  }
+  return sc;
+}
+
+}  // namespace mvtwin::forward
