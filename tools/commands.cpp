@@ -23,6 +23,7 @@
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/core/simulation_file.h"
+#include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/virtual_closure.h"
@@ -358,33 +359,57 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- export-model ----------------------------------------------------------------------------
   {
-    auto* cmd =
-        app.add_subcommand("export-model", "Write the FE model at end-diastole for ParaView");
+    auto* cmd = app.add_subcommand(
+        "export-model", "Write the FE scene at end-diastole for ParaView and FEBio");
     cmd->footer(
         "Example:\n  mvtwin export-model patient.h5 --out model/\n"
-        "Writes leaflets.vtu (tags, fibres, prescribed flags), chordae.vtp, pressure_surface.vtp.");
+        "  mvtwin export-model patient.h5 --out model/ --set ures=40 --set clips=0.25,1,0.75,1\n"
+        "Writes leaflets.vtu / leaflets_quadratic.vtu (tags, fibres, prescribed flags), chordae.vtp\n"
+        "(rest lengths and laws), pressure_surface.vtp, boundary.csv (pressure profile, papillary\n"
+        "tips), annulus_motion.csv and boundary.pvd (prescribed motion), valve.feb (FEBio 4.0).\n"
+        "Uses the patient's hidden parameters when it is synthetic, else the defaults; --set as in\n"
+        "mvtwin simulate.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
-    auto opts = std::make_shared<forward::ModelOptions>();
-    auto quadratic = std::make_shared<bool>(true);
+    auto opts = std::make_shared<forward::ClosureOptions>();
+    auto sets = std::make_shared<std::vector<std::string>>();
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--out", *dir, "output directory")->required();
-    add_grid_options(cmd, opts->ures, opts->vres);
-    cmd->add_option("--layers", opts->layers, "element layers through the thickness")
+    add_grid_options(cmd, opts->model.ures, opts->model.vres);
+    cmd->add_option("--layers", opts->model.layers, "element layers through the thickness")
         ->default_val(1);
-    cmd->add_option("--marginal-chordae", opts->marginal_chordae, "marginal chordae count")
+    cmd->add_option("--marginal-chordae", opts->model.marginal_chordae, "marginal chordae count")
         ->default_val(28);
+    cmd->add_option("--set", *sets, "name=value for any option or parameter (repeatable)");
     cmd->callback([=, &ctx] {
-      ctx.run = [=] {
+      ctx.run = [=, &ctx] {
         const Patient p = read_patient(*file, false);
-        const forward::ValveModel m = forward::build_valve_model(p.sequence, *opts);
-        const auto files = forward::export_model_vtk(m, *dir);
-        std::cout << "model of " << p.id << ": " << m.mesh.num_elements()
-                  << " quadratic tetrahedra, " << m.mesh.num_nodes() << " nodes, "
-                  << m.chordae.size() << " chordae, " << m.annulus_nodes.size()
-                  << " prescribed annulus nodes; worst element quality " << m.min_quality
-                  << " (element " << m.worst_element << "); wrote " << files.size() << " files to "
-                  << *dir << "\n";
+        forward::ClosureOptions o = *opts;
+        ValveParameters par;
+        if (p.truth) {
+          par = p.truth->parameters;
+          o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
+        }
+        for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
+        const forward::ClosureScene scene = forward::make_closure_scene(p.sequence, par, o);
+        std::ostringstream comment;
+        comment << "mvtwin " << kVersion << " export-model of " << p.id
+                << (p.synthetic ? " [SYNTHETIC: virtual patient]" : "") << "\ncommand: "
+                << ctx.command_line << "\ncreated: " << utc_now_iso8601() << "\nparameters:";
+        par.for_each([&](const std::string& name, double v, const char* unit) {
+          comment << " " << name << "=" << v << " " << unit << ";";
+        });
+        const auto files = forward::export_scene(scene, o, *dir, comment.str());
+        const forward::ValveModel& m = scene.model;
+        std::cout << "scene of " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
+                  << m.mesh.num_elements()
+                  << (m.mesh.order == forward::TetOrder::kQuadratic ? " quadratic" : " linear")
+                  << " tetrahedra, " << m.mesh.num_nodes() << " nodes, " << scene.chordae.size()
+                  << " chordae, " << scene.springs.size() << " clips, " << scene.prescribed.size()
+                  << " prescribed nodes, closure over " << fmt(scene.duration(), 3)
+                  << " s (simulated); worst element quality " << m.min_quality << " (element "
+                  << m.worst_element << "); wrote " << files.size() << " files to " << *dir
+                  << " (valve.feb for FEBio)\n";
         return 0;
       };
     });

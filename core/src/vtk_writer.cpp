@@ -158,6 +158,45 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
   write_text(path, os.str());
 }
 
+void write_vtu(const std::filesystem::path& path, const VtkUnstructuredGrid& g) {
+  const auto np = static_cast<int>(g.points.rows());
+  for (const auto& c : g.cells) {
+    for (int i : c) {
+      if (i < 0 || i >= np) throw Error(path.string() + ": cell point index out of range");
+    }
+  }
+  if (!g.points.allFinite()) throw Error(path.string() + ": non-finite point coordinates");
+  std::ostringstream os;
+  os << kHeader << kVersion << " -->\n"
+     << "<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+     << "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"" << np << "\" NumberOfCells=\""
+     << g.cells.size() << "\">\n";
+  write_data(os, "PointData", g.point_data, static_cast<size_t>(np), "points");
+  write_data(os, "CellData", g.cell_data, g.cells.size(), "cells");
+  write_points(os, g.points);
+  os << "      <Cells>\n        <DataArray type=\"Int32\" Name=\"connectivity\" "
+        "format=\"ascii\">\n";
+  for (const auto& c : g.cells) {
+    os << "         ";
+    for (int i : c) os << " " << i;
+    os << "\n";
+  }
+  os << "        </DataArray>\n        <DataArray type=\"Int32\" Name=\"offsets\" "
+        "format=\"ascii\">\n          ";
+  size_t offset = 0;
+  for (size_t e = 0; e < g.cells.size(); ++e) {
+    offset += g.cells[e].size();
+    os << offset << (e % 16 == 15 ? "\n          " : " ");
+  }
+  os << "\n        </DataArray>\n        <DataArray type=\"UInt8\" Name=\"types\" "
+        "format=\"ascii\">\n          ";
+  for (size_t e = 0; e < g.cells.size(); ++e)
+    os << g.cell_type << (e % 32 == 31 ? "\n          " : " ");
+  os << "\n        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n"
+     << "</VTKFile>\n";
+  write_text(path, os.str());
+}
+
 void write_pvd(const std::filesystem::path& path,
                const std::vector<std::pair<double, std::string>>& steps) {
   std::ostringstream os;

@@ -44,6 +44,18 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
                const std::vector<VtkArray>& point_data = {},
                const std::vector<VtkArray>& cell_data = {});
 
+/// A generic unstructured grid of cells of one VTK type (10 VTK_TETRA, 24 VTK_QUADRATIC_TETRA,
+/// ...), each cell its point indices in VTK order.
+struct VtkUnstructuredGrid {
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> points;
+  std::vector<std::vector<int>> cells;
+  int cell_type = 10;
+  std::vector<VtkArray> point_data;
+  std::vector<VtkArray> cell_data;
+};
+/// VTK XML UnstructuredGrid (.vtu) of a generic grid; throws for indices out of range.
+void write_vtu(const std::filesystem::path& path, const VtkUnstructuredGrid& grid);
+
 /// ParaView collection (.pvd) of a time series: (time in s, file path relative to the .pvd).
 void write_pvd(const std::filesystem::path& path,
                const std::vector<std::pair<double, std::string>>& steps);

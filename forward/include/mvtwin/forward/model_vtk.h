@@ -1,20 +1,32 @@
 #pragma once
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
 
-/// Writes the model for ParaView: leaflets.vtu (corner tetrahedra with tag, fibre, and per
-/// point the flag `prescribed`), chordae.vtp (lines from insertion to papillary tip with group,
-/// marginal flag and end-diastolic length), pressure_surface.vtp (the ventricular faces).
-/// Returns the files written.
-std::vector<std::filesystem::path> export_model_vtk(const ValveModel& model,
-                                                    const std::filesystem::path& dir);
+/// Writes the closure scene at end-diastole so that another solver can run it
+/// (docs/valve-model.md, docs/febio-export.md):
+///   leaflets.vtu            corner tetrahedra: tag, fibre, per point `prescribed`
+///   leaflets_quadratic.vtu  the elements as simulated (VTK_QUADRATIC_TETRA or VTK_TETRA)
+///   chordae.vtp             insertion-to-tip lines: group, marginal, end-diastolic and rest
+///                           length, the law (A0, E low / high, strain at the break), tip
+///   pressure_surface.vtp    the ventricular faces where the pressure acts
+///   boundary.csv            per time sample: pressure (MPa) and both papillary tips (mm)
+///   annulus_motion.csv      per time sample and prescribed node: its position (mm)
+///   boundary.pvd            the annulus curve and tips over time for ParaView
+///   valve.feb               the same scene for FEBio (forward/febio_export.h)
+/// `comment` (provenance) heads the text files. Returns the files written.
+std::vector<std::filesystem::path> export_scene(const ClosureScene& scene,
+                                                const ClosureOptions& options,
+                                                const std::filesystem::path& dir,
+                                                const std::string& comment);
 
 /// Writes a simulation's recorded atrial surfaces as la_surface_NNNN.vtp plus a time series
 /// simulation.pvd (simulated time). Returns the files written.

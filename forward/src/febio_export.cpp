@@ -1,0 +1,337 @@
+#include "mvtwin/forward/febio_export.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <Eigen/Geometry>
+
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+
+namespace mvtwin::forward {
+namespace {
+
+std::string num(double x) {
+  std::ostringstream os;
+  os.precision(12);
+  os << x;
+  return os.str();
+}
+
+std::string vec(const Eigen::Vector3d& v) { return num(v.x()) + "," + num(v.y()) + "," + num(v.z()); }
+
+/// XML comments may not contain "--".
+std::string comment_safe(std::string s) {
+  for (size_t i = s.find("--"); i != std::string::npos; i = s.find("--")) s.replace(i, 2, "- -");
+  return s;
+}
+
+/// A unit vector orthogonal to a (the material's second axis; any choice is equivalent for a
+/// transversely isotropic material).
+Eigen::Vector3d orthogonal(const Eigen::Vector3d& a) {
+  Eigen::Index k;
+  a.cwiseAbs().minCoeff(&k);
+  return a.cross(Eigen::Vector3d(Eigen::Vector3d::Unit(k))).normalized();
+}
+
+}  // namespace
+
+std::vector<std::pair<double, double>> febio_spring_curve(double initial, double rest,
+                                                          const ChordaLaw* law, double k) {
+  // The spring's strain is (initial + DL - rest) / rest; no force in compression.
+  const double slack = rest - initial;  // DL at which the spring becomes taut
+  std::vector<std::pair<double, double>> pts = {{std::min(slack, 0.0) - initial, 0.0},
+                                                {slack, 0.0}};
+  if (law) {
+    const double eb = law->strain_break;
+    pts.emplace_back(slack + eb * rest, law->area * law->stress(eb));
+    pts.emplace_back(slack + 2.0 * rest, law->area * law->stress(2.0));
+  } else {
+    pts.emplace_back(slack + rest, k * rest);
+  }
+  return pts;
+}
+
+void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
+                 const ClosureOptions& opt, const std::string& comment) {
+  const ValveModel& m = scene.model;
+  const SolidMesh& mesh = m.mesh;
+  const bool quadratic = mesh.order == TetOrder::kQuadratic;
+  const int n = mesh.num_nodes();
+  const double T = scene.duration();
+  // Load curves sampled often enough for the C1 motion between frames and the smoothstep.
+  const int samples = 41;
+  auto sample_time = [&](int k) { return T * k / (samples - 1); };
+
+  std::ostringstream lc;        // LoadData
+  int curves = 0;
+  auto add_curve = [&](const std::string& name, const std::vector<std::pair<double, double>>& pts,
+                       const char* extend) {
+    ++curves;
+    lc << "    <load_controller id=\"" << curves << "\" name=\"" << name
+       << "\" type=\"loadcurve\">\n      <interpolate>LINEAR</interpolate>\n      <extend>" << extend
+       << "</extend>\n      <points>\n";
+    for (const auto& [t, v] : pts) lc << "        <pt>" << num(t) << "," << num(v) << "</pt>\n";
+    lc << "      </points>\n    </load_controller>\n";
+    return curves;
+  };
+
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>\n<!--\n"
+     << comment_safe(comment) << "\n"
+     << "Units: mm, s, N, MPa, t (tonne). Written by mvtwin write_febio (docs/febio-export.md).\n"
+     << "Not expressible in FEBio and therefore not in this file: Rayleigh damping (alpha_M = "
+     << num(opt.rayleigh_mass) << " 1/s, alpha_K = " << num(opt.rayleigh_stiffness)
+     << " s; the analysis is quasi-static instead), self-contact within one leaflet, the\n"
+     << "contact wall below the minimum distance (wall factor " << num(opt.contact_wall_factor)
+     << "), the inversion guard, the clip phase.\n-->\n";
+  os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
+  os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
+     << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
+     << num(opt.dt) << "</step_size>\n    <solver type=\"solid\">\n"
+     << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n    </solver>\n"
+     << "  </Control>\n";
+
+  // Materials.
+  const char* names[2] = {"anterior_leaflet", "posterior_leaflet"};
+  os << "  <Material>\n";
+  for (int k = 0; k < 2; ++k) {
+    const TransverselyIsotropic& t = scene.leaflet_material[k];
+    os << "    <material id=\"" << k + 1 << "\" name=\"" << names[k]
+       << "\" type=\"orthotropic elastic\">\n      <density>" << num(opt.density)
+       << "</density>\n      <E1>" << num(t.e_fibre) << "</E1>\n      <E2>" << num(t.e_cross)
+       << "</E2>\n      <E3>" << num(t.e_cross) << "</E3>\n      <v12>" << num(t.nu_fibre)
+       << "</v12>\n      <v23>" << num(t.nu_cross) << "</v23>\n      <v31>"
+       << num(t.nu_fibre * t.e_cross / t.e_fibre) << "</v31>\n      <G12>" << num(t.g_fibre)
+       << "</G12>\n      <G23>" << num(t.g_cross()) << "</G23>\n      <G31>" << num(t.g_fibre)
+       << "</G31>\n    </material>\n";
+  }
+  os << "  </Material>\n";
+
+  // Mesh: leaflet nodes 1..n, papillary tips n+1, n+2.
+  os << "  <Mesh>\n    <Nodes name=\"leaflets\">\n";
+  for (int i = 0; i < n; ++i)
+    os << "      <node id=\"" << i + 1 << "\">" << vec(mesh.V.row(i).transpose()) << "</node>\n";
+  os << "    </Nodes>\n    <Nodes name=\"papillary_tips\">\n";
+  for (int k = 0; k < 2; ++k)
+    os << "      <node id=\"" << n + 1 + k << "\">" << vec(scene.papillary_tip(k, 0.0))
+       << "</node>\n";
+  os << "    </Nodes>\n";
+  const int npe = mesh.nodes_per_element();
+  std::vector<int> elements_of[2];
+  for (int e = 0; e < mesh.num_elements(); ++e)
+    elements_of[mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1].push_back(e);
+  const char* domains[2] = {"anterior", "posterior"};
+  int eid = 0;
+  for (int k = 0; k < 2; ++k) {
+    os << "    <Elements type=\"" << (quadratic ? "tet10" : "tet4") << "\" name=\"" << domains[k]
+       << "\">\n";
+    for (int e : elements_of[k]) {
+      // VTK and FEBio order the tet10 nodes alike: corners, then edges 12, 23, 31, 14, 24, 34.
+      os << "      <elem id=\"" << ++eid << "\">";
+      for (int a = 0; a < npe; ++a) os << (a ? "," : "") << mesh.T(e, a) + 1;
+      os << "</elem>\n";
+    }
+    os << "    </Elements>\n";
+  }
+  // Prescribed nodes: one node set each (one boundary condition per node and axis).
+  for (const PrescribedNode& p : scene.prescribed)
+    os << "    <NodeSet name=\"annulus_" << p.node + 1 << "\">" << p.node + 1 << "</NodeSet>\n";
+  for (int k = 0; k < 2; ++k)
+    os << "    <NodeSet name=\"papillary_tip_" << k + 1 << "\">" << n + 1 + k << "</NodeSet>\n";
+  // Surfaces: the pressure surface and each leaflet's two surfaces for contact.
+  const char* facet_type = quadratic ? "tri6" : "tri3";
+  auto facet = [&](int id, int a, int b, int c) {
+    std::ostringstream f;
+    f << "      <" << facet_type << " id=\"" << id << "\">" << a + 1 << "," << b + 1 << "," << c + 1;
+    if (quadratic) {
+      f << "," << mesh.mid_node(a, b) + 1 << "," << mesh.mid_node(b, c) + 1 << ","
+        << mesh.mid_node(c, a) + 1;
+    }
+    f << "</" << facet_type << ">\n";
+    return f.str();
+  };
+  os << "    <Surface name=\"ventricular\">\n";
+  int fid = 0;
+  for (const PressureFace& pf : scene.pressure_faces) os << facet(++fid, pf.a, pf.b, pf.c);
+  os << "    </Surface>\n";
+  for (int k = 0; k < 2; ++k) {
+    os << "    <Surface name=\"" << domains[k] << "_surfaces\">\n";
+    fid = 0;
+    for (Eigen::Index f = 0; f < m.surface_triangles.rows(); ++f) {
+      const bool anterior = m.surface_st(m.surface_triangles(f, 0), 0) < 0.5;
+      if (anterior != (k == 0)) continue;
+      for (int layer : {0, m.options.layers}) {
+        int a = m.node(m.surface_triangles(f, 0), layer), b = m.node(m.surface_triangles(f, 1), layer),
+            c = m.node(m.surface_triangles(f, 2), layer);
+        if (layer == 0) std::swap(b, c);  // outward: towards the atrium on the atrial surface
+        os << facet(++fid, a, b, c);
+      }
+    }
+    os << "    </Surface>\n";
+  }
+  os << "    <SurfacePair name=\"leaflets\">\n      <primary>anterior_surfaces</primary>\n"
+     << "      <secondary>posterior_surfaces</secondary>\n    </SurfacePair>\n";
+  // Springs: chordae and clips, one discrete set each.
+  struct Spring {
+    std::string name;
+    int a, b;        // FEBio node ids
+    double scale;    // share of the force
+    double initial;  // length in the reference configuration, mm
+    double rest;     // rest length, mm
+    const ChordaLaw* law;
+    double k;
+  };
+  std::vector<Spring> springs;
+  auto middle = [&](const std::vector<int>& nodes) {
+    std::vector<int> mid;
+    const size_t s = nodes.size();
+    if (s % 2) {
+      mid.push_back(nodes[s / 2]);
+    } else {
+      mid.push_back(nodes[s / 2 - 1]);
+      mid.push_back(nodes[s / 2]);
+    }
+    return mid;
+  };
+  for (size_t c = 0; c < scene.chordae.size(); ++c) {
+    const SceneChorda& ch = scene.chordae[c];
+    const auto mid = middle(ch.nodes);
+    for (size_t j = 0; j < mid.size(); ++j) {
+      const double initial =
+          (mesh.V.row(mid[j]).transpose() - scene.papillary_tip(ch.tip, 0.0)).norm();
+      std::ostringstream name;
+      name << "chorda_" << c + 1;
+      if (mid.size() > 1) name << "_" << j + 1;
+      springs.push_back({name.str(), mid[j] + 1, n + 1 + ch.tip, 1.0 / static_cast<double>(mid.size()),
+                         initial, ch.rest_length, &ch.law, 0.0});
+    }
+  }
+  for (size_t c = 0; c < scene.springs.size(); ++c) {
+    const SceneSpring& sp = scene.springs[c];
+    const int a = middle(sp.a).front(), b = middle(sp.b).front();
+    const double initial = (mesh.V.row(a) - mesh.V.row(b)).norm();
+    springs.push_back({"clip_" + std::to_string(c + 1), a + 1, b + 1, 1.0, initial, sp.rest_length,
+                       nullptr, sp.stiffness});
+  }
+  for (const Spring& s : springs)
+    os << "    <DiscreteSet name=\"" << s.name << "\">\n      <delem>" << s.a << "," << s.b
+       << "</delem>\n    </DiscreteSet>\n";
+  os << "  </Mesh>\n";
+
+  os << "  <MeshDomains>\n";
+  for (int k = 0; k < 2; ++k)
+    os << "    <SolidDomain name=\"" << domains[k] << "\" mat=\"" << names[k] << "\"/>\n";
+  os << "  </MeshDomains>\n";
+
+  // Per-element material axes: a = fibre.
+  os << "  <MeshData>\n";
+  for (int k = 0; k < 2; ++k) {
+    os << "    <ElementData type=\"mat_axis\" elem_set=\"" << domains[k] << "\">\n";
+    int lid = 0;
+    for (int e : elements_of[k]) {
+      const Eigen::Vector3d a = mesh.fibre.row(e).transpose().normalized();
+      os << "      <elem lid=\"" << ++lid << "\"><a>" << vec(a) << "</a><d>" << vec(orthogonal(a))
+         << "</d></elem>\n";
+    }
+    os << "    </ElementData>\n";
+  }
+  os << "  </MeshData>\n";
+
+  // Prescribed motion: displacement curves per node and axis.
+  const char* axes[3] = {"x", "y", "z"};
+  os << "  <Boundary>\n";
+  {
+    std::vector<Eigen::VectorXd> positions;
+    for (int k = 0; k < samples; ++k) {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(3 * n);
+      scene.prescribed_positions(sample_time(k), &x);
+      positions.push_back(x);
+    }
+    for (const PrescribedNode& p : scene.prescribed) {
+      for (int d = 0; d < 3; ++d) {
+        std::vector<std::pair<double, double>> pts;
+        for (int k = 0; k < samples; ++k)
+          pts.emplace_back(sample_time(k), positions[k][3 * p.node + d] - mesh.V(p.node, d));
+        const int id = add_curve("annulus_" + std::to_string(p.node + 1) + "_" + axes[d], pts, "CONSTANT");
+        os << "    <bc name=\"annulus_" << p.node + 1 << "_" << axes[d] << "\" node_set=\"annulus_"
+           << p.node + 1 << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
+           << "</dof>\n      <value lc=\"" << id << "\">1</value>\n      <relative>0</relative>\n"
+           << "    </bc>\n";
+      }
+    }
+    for (int tip = 0; tip < 2; ++tip) {
+      for (int d = 0; d < 3; ++d) {
+        std::vector<std::pair<double, double>> pts;
+        for (int k = 0; k < samples; ++k)
+          pts.emplace_back(sample_time(k),
+                           scene.papillary_tip(tip, sample_time(k))[d] - scene.papillary_tip(tip, 0.0)[d]);
+        const int id = add_curve("papillary_tip_" + std::to_string(tip + 1) + "_" + axes[d], pts, "CONSTANT");
+        os << "    <bc name=\"papillary_tip_" << tip + 1 << "_" << axes[d]
+           << "\" node_set=\"papillary_tip_" << tip + 1
+           << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
+           << "</dof>\n      <value lc=\"" << id << "\">1</value>\n      <relative>0</relative>\n"
+           << "    </bc>\n";
+      }
+    }
+  }
+  os << "  </Boundary>\n";
+
+  // Pressure with the smoothstep profile (curve of the fraction of the peak).
+  {
+    std::vector<std::pair<double, double>> pts;
+    for (int k = 0; k < samples; ++k)
+      pts.emplace_back(sample_time(k), scene.peak_pressure_mpa > 0
+                                           ? scene.pressure(sample_time(k)) / scene.peak_pressure_mpa
+                                           : 0.0);
+    const int id = add_curve("pressure_profile", pts, "CONSTANT");
+    os << "  <Loads>\n    <surface_load name=\"pressure\" surface=\"ventricular\" type=\"pressure\">\n"
+       << "      <pressure lc=\"" << id << "\">" << num(scene.peak_pressure_mpa) << "</pressure>\n"
+       << "      <symmetric_stiffness>1</symmetric_stiffness>\n      <linear>0</linear>\n"
+       << "      <shell_bottom>0</shell_bottom>\n    </surface_load>\n  </Loads>\n";
+  }
+
+  if (opt.contact) {
+    os << "  <Contact>\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" type=\"sliding-elastic\">\n"
+       << "      <two_pass>1</two_pass>\n      <auto_penalty>1</auto_penalty>\n"
+       << "      <penalty>1</penalty>\n      <fric_coeff>" << num(opt.contact_friction)
+       << "</fric_coeff>\n      <search_tol>0.01</search_tol>\n      <search_radius>"
+       << num(opt.contact_alarm_mm) << "</search_radius>\n      <gaptol>0</gaptol>\n"
+       << "      <symmetric_stiffness>0</symmetric_stiffness>\n    </contact>\n  </Contact>\n";
+  }
+
+  // Discrete springs: force against elongation from the reference length.
+  os << "  <Discrete>\n";
+  for (size_t s = 0; s < springs.size(); ++s) {
+    const Spring& sp = springs[s];
+    const auto pts = febio_spring_curve(sp.initial, sp.rest, sp.law, sp.k);
+    os << "    <discrete_material id=\"" << s + 1 << "\" name=\"" << sp.name
+       << "\" type=\"nonlinear spring\">\n      <scale>" << num(sp.scale)
+       << "</scale>\n      <measure>elongation</measure>\n      <force type=\"point\">\n"
+       << "        <interpolate>linear</interpolate>\n        <extend>extrapolate</extend>\n"
+       << "        <points>\n";
+    for (const auto& [x, f] : pts) os << "          <pt>" << num(x) << "," << num(f) << "</pt>\n";
+    os << "        </points>\n      </force>\n    </discrete_material>\n";
+  }
+  for (size_t s = 0; s < springs.size(); ++s)
+    os << "    <discrete dmat=\"" << s + 1 << "\" discrete_set=\"" << springs[s].name << "\"/>\n";
+  os << "  </Discrete>\n";
+
+  os << "  <LoadData>\n" << lc.str() << "  </LoadData>\n";
+  os << "  <Output>\n    <plotfile type=\"febio\">\n      <var type=\"displacement\"/>\n"
+     << "      <var type=\"stress\"/>\n      <var type=\"contact gap\"/>\n"
+     << "      <var type=\"contact pressure\"/>\n    </plotfile>\n  </Output>\n";
+  os << "</febio_spec>\n";
+
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream f(tmp);
+    f << os.str();
+    if (!f) throw Error(path.string() + ": cannot write");
+  });
+}
+
+}  // namespace mvtwin::forward
