@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/rng.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/elastic_body.h"
 
@@ -191,6 +192,43 @@ TEST(ValveModel, FibresCircumferentialTurningRadialAtAnteriorCommissures) {
   EXPECT_LT(alignment(0.47, 0.5), 0.5);  // the other commissure
   // Posterior next to the commissure stays circumferential.
   EXPECT_GT(alignment(0.52, 0.6), 0.9);
+}
+
+// Detection-like noise on every grid point (0.3-1 mm) used to fail the builder ("degenerate
+// leaflet surface"). Clean grids are left alone; noisy ones are smoothed until their
+// roughness is below the threshold's half, build valid elements, and stay close to the clean
+// surface.
+TEST(ValveModel, NoisyInputIsSmoothedCleanInputIsNot) {
+  ModelOptions o;
+  o.ures = 20;
+  o.vres = 10;
+  for (int seed : {1, 2, 3, 4, 5}) {
+    const Patient p = make_virtual_patient(static_cast<std::uint64_t>(seed));
+    const ValveModel clean = build_valve_model(p.sequence, o);
+    EXPECT_LT(clean.input_roughness_mm, 0.5 * o.smoothing_roughness_mm) << "seed " << seed;
+    EXPECT_EQ(clean.smoothing_passes, 0);
+    for (double sd : {0.3, 0.6, 1.0}) {
+      Patient q = p;
+      Rng rng(static_cast<std::uint64_t>(100 * seed) + static_cast<std::uint64_t>(10 * sd));
+      auto& P = q.sequence.frames[q.sequence.end_diastole].la_surface->points();
+      const int U = q.sequence.frames[q.sequence.end_diastole].la_surface->ures();
+      for (Eigen::Index k = U; k < P.rows(); ++k)
+        for (int c = 0; c < 3; ++c) P(k, c) += rng.normal(0.0, sd);
+      ValveModel noisy;
+      ASSERT_NO_THROW(noisy = build_valve_model(q.sequence, o)) << "seed " << seed << " sd " << sd;
+      EXPECT_GT(noisy.input_roughness_mm, o.smoothing_roughness_mm);
+      EXPECT_GT(noisy.smoothing_passes, 0);
+      EXPECT_GT(noisy.min_quality, 0.005) << "seed " << seed << " sd " << sd;
+      // The smoothed model's atrial surface against the clean one (same grid sampling).
+      const AtrialSampler sc = make_atrial_sampler(clean, 20, 10), sn = make_atrial_sampler(noisy, 20, 10);
+      Eigen::VectorXd xc(3 * clean.mesh.num_nodes()), xn(3 * noisy.mesh.num_nodes());
+      for (int i = 0; i < clean.mesh.num_nodes(); ++i) xc.segment<3>(3 * i) = clean.mesh.V.row(i).transpose();
+      for (int i = 0; i < noisy.mesh.num_nodes(); ++i) xn.segment<3>(3 * i) = noisy.mesh.V.row(i).transpose();
+      const LeafletGrid gc = sample_atrial(sc, xc), gn = sample_atrial(sn, xn);
+      const double mean = (gc.points() - gn.points()).rowwise().norm().mean();
+      EXPECT_LT(mean, std::max(0.6, 0.9 * sd)) << "seed " << seed << " sd " << sd;
+    }
+  }
 }
 
 TEST(ValveModel, BadInputIsNamed) {

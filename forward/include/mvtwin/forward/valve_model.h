@@ -26,6 +26,14 @@ struct ModelOptions {
   /// Leaflet thickness in mm (Mansi et al. 2012, after Votta 2008 / Kunzelman 2007).
   double al_thickness_mm = 1.32;
   double pl_thickness_mm = 1.26;
+  /// Noisy input surfaces (detection noise of 0.3-1 mm on every grid point) make degenerate
+  /// elements. When the end-diastolic grid's roughness (grid_roughness: an estimate of the
+  /// noise SD) exceeds this, it is smoothed (Taubin passes on every row but the annulus) until
+  /// it is below a tenth of it, at most max_smoothing_passes passes (measured: 0.3-1 mm noise
+  /// then builds elements of quality >= 0.005, within 0.6 mm of the clean surface). Clean grids are left as they
+  /// are. 0 switches smoothing off.
+  double smoothing_roughness_mm = 0.1;
+  int max_smoothing_passes = 50;
 
   bool is_valid(std::string* error) const;
 };
@@ -84,6 +92,9 @@ struct ValveModel {
   /// where it is. Slivers near the commissures (see docs/forward-status.md) show up here.
   double min_quality = 0.0;
   int worst_element = -1;
+  /// Roughness of the end-diastolic grid as given, mm, and the smoothing passes it received.
+  double input_roughness_mm = 0.0;
+  int smoothing_passes = 0;
 
   /// Corner node of surface node i on layer l (0 = atrial surface, layers = ventricular).
   int node(int i, int layer) const { return layer * surface_nodes + i; }
@@ -99,6 +110,14 @@ struct AtrialSampler {
 AtrialSampler make_atrial_sampler(const ValveModel& model, int ures, int vres);
 /// The atrial surface at positions x (all nodes, flattened, mm) as a grid.
 LeafletGrid sample_atrial(const AtrialSampler& sampler, const Eigen::VectorXd& x);
+
+/// Roughness of a leaflet grid, mm: the RMS of fourth differences along u and v over the
+/// rows beyond the annulus, scaled so that white noise of SD sigma per coordinate scores
+/// sigma (smooth curvature scores ~0.01 mm).
+double grid_roughness(const LeafletGrid& grid);
+/// Taubin (lambda/mu) smoothing passes over every row but the annulus (v = 0), periodic in u;
+/// the free-edge row is smoothed along the edge only.
+void smooth_grid(LeafletGrid* grid, int passes);
 
 /// Builds the model from the end-diastolic frame of a sequence. Throws mvtwin::Error naming the
 /// problem (no end-diastolic frame, leaflets or papillary tips not observed there, invalid
