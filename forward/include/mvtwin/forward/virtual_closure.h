@@ -17,7 +17,7 @@ struct VirtualClosureOptions {
   double noise_mm = 0.5;
 
   /// A finer model than the calibration default (ures = vres = 30, 1 layer, dt = 0.01 s):
-  /// ures = vres = 40, 2 layers, dt = 2.5e-3 s, stiff contact with Newton iterations.
+  /// ures = vres = 40, 2 layers, dt = 2.5e-3 s, linear systems solved to 1e-3.
   static ClosureOptions fine_default();
 };
 
