@@ -213,6 +213,81 @@ void register_bench(CLI::App& app, Context& ctx) {
     });
   }
 
+  // ---- bench solvers -----------------------------------------------------------------------
+  {
+    auto* cmd = bench->add_subcommand(
+        "solvers", "Linear solvers at equal accuracy: time and error of each");
+    cmd->footer(
+        "Example:\n  mvtwin bench solvers --json solvers.json --ref-file closure_ref.h5\n"
+        "The default patient's closure at the paper's settings with each linear solver: a\n"
+        "factorization every step (CHOLMOD supernodal, CHOLMOD simplicial, Eigen LDLT) and the\n"
+        "reused factorization as a preconditioner (with and without the rotation of the\n"
+        "factor), each at linear tolerances 0.1 and 1e-3; error against the reference run.");
+    auto json_path = std::make_shared<std::string>();
+    auto ref_file = std::make_shared<std::string>();
+    auto sets = std::make_shared<std::vector<std::string>>();
+    auto ref_sets = std::make_shared<std::vector<std::string>>(kReferenceSettings);
+    auto seed = std::make_shared<unsigned>(1);
+    cmd->add_option("--json", *json_path, "write the figures here");
+    cmd->add_option("--set", *sets, "name=value for every run (repeatable)");
+    cmd->add_option("--ref-set", *ref_sets, "name=value for the reference run")
+        ->default_str(join(kReferenceSettings));
+    cmd->add_option("--ref-file", *ref_file, "reference simulation file to reuse or write");
+    cmd->add_option("--seed", *seed, "virtual patient")->default_val(1);
+    cmd->callback([=, &ctx] {
+      ctx.run = [=, &ctx] {
+        const Patient p = make_virtual_patient(*seed);
+        const LeafletGrid ref = reference_surface(p, with_settings({}, *ref_sets), *ref_file, ctx);
+        const std::vector<std::vector<std::string>> variants = {
+            {"solver=cholmod-supernodal"},
+            {"solver=cholmod-simplicial"},
+            {"solver=eigen-ldlt"},
+            {"solver=reused-factor-pcg", "rotated_preconditioner=on"},
+            {"solver=reused-factor-pcg", "rotated_preconditioner=off"}};
+        json rows = json::array();
+        std::cout << "solver                       tol     wall_s  solve_s  factorizations  "
+                     "pcg_iterations  error_mean_mm  error_max_mm\n";
+        for (const char* tol : {"0.1", "0.001"}) {
+          for (const auto& v : variants) {
+            std::vector<std::string> all = *sets;
+            all.insert(all.end(), v.begin(), v.end());
+            all.push_back(std::string("pcg_tolerance=") + tol);
+            const Run r = run(p, with_settings({}, all));
+            const auto& s = r.result.summary;
+            const DistanceStats e =
+                symmetric_surface_distance(r.result.samples.back().la_surface.triangulate(),
+                                           ref.triangulate()).symmetric;
+            json row = summary_json(r);
+            row["variant"] = v;
+            row["pcg_tolerance"] = std::stod(tol);
+            row["pcg_iterations"] = s.pcg_iterations;
+            row["factorize_s"] = s.factorize_s;
+            row["error_mean_mm"] = e.mean;
+            row["error_max_mm"] = e.max;
+            rows.push_back(row);
+            std::string name = v[0].substr(7);
+            if (v.size() > 1) name += v[1].find("on") != std::string::npos ? " (rotated)" : " (plain)";
+            char line[240];
+            std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
+                          name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations,
+                          s.pcg_iterations, e.mean, e.max,
+                          s.status == forward::ClosureStatus::kConverged
+                              ? ""
+                              : ("  FAILED: " + s.reason).c_str());
+            std::cout << line << std::flush;
+          }
+        }
+        json j{{"runs", rows},
+               {"patient_seed", *seed},
+               {"synthetic", true},
+               {"reference_settings", *ref_sets},
+               {"provenance", provenance(ctx)}};
+        write_json(*json_path, j);
+        return 0;
+      };
+    });
+  }
+
   // ---- bench accuracy ---------------------------------------------------------------------
   {
     auto* cmd = bench->add_subcommand(
