@@ -51,8 +51,9 @@ struct Run {
   double wall_s = 0;
 };
 
-Run run(const Patient& p, const forward::ClosureOptions& o) {
+Run run(const Patient& p, forward::ClosureOptions o) {
   Run r;
+  o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   r.result = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   r.wall_s = r.result.summary.wall_s;
   return r;
@@ -106,19 +107,31 @@ forward::ClosureOptions with_settings(forward::ClosureOptions o,
 /// with the same options, else simulated (and written to `file` if one is named).
 LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& ro,
                               const std::string& file, const Context& ctx) {
-  const auto wanted = forward::describe_options(ro);
+  // What decides the result: every option but how often states are recorded.
+  auto physics = [](std::vector<std::pair<std::string, std::string>> o) {
+    o.erase(std::remove_if(o.begin(), o.end(), [](const auto& kv) { return kv.first == "record_every"; }),
+            o.end());
+    return o;
+  };
+  const auto wanted = physics(forward::describe_options(ro));
   if (!file.empty() && std::filesystem::exists(file)) {
     const SimulationRecord rec = read_simulation_file(file);
-    if (rec.patient_id == p.id && rec.options == wanted && rec.status == "converged" &&
+    if (rec.patient_id == p.id && physics(rec.options) == wanted && rec.status == "converged" &&
         !rec.la_surface.empty()) {
-      std::cout << "reference: " << file << " (reused)\n";
+      std::cout << "reference: " << file << " (reused; made by mvtwin " << rec.provenance.version
+                << " on " << rec.provenance.created_utc << ")\n";
+      if (rec.provenance.version != kVersion)
+        std::cout << "  note: another mvtwin version made it; delete the file to recompute\n";
       return rec.la_surface.back();
     }
     std::cout << "reference: " << file << " has other settings or another patient; recomputing\n";
   }
   std::cout << "reference run (" << ro.model.ures << " x " << ro.model.vres << ", dt " << ro.dt
-            << " s) ..." << std::endl;
+            << " s; the default reference takes about an hour on this kind of machine, --ref-file "
+               "keeps it) ..."
+            << std::endl;
   forward::ClosureOptions o = ro;
+  o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   o.progress = progress_line("  reference");
   const forward::ClosureResult r = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   std::cout << r.summary.brief_report() << "\n";
