@@ -279,7 +279,7 @@ void register_bench(CLI::App& app, Context& ctx) {
             row["error_max_mm"] = e.max;
             rows.push_back(row);
             std::string name = v[0].substr(7);
-            if (v.size() > 1) name += v[1].find("on") != std::string::npos ? " (rotated)" : " (plain)";
+            if (v.size() > 1) name += v[1] == "rotated_preconditioner=on" ? " (rotated)" : " (plain)";
             char line[240];
             std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
                           name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations,
