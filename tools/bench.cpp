@@ -418,6 +418,7 @@ void register_bench(CLI::App& app, Context& ctx) {
         Rng rng(*seed);
         int converged = 0, clean = 0, crashes = 0, nonfinite = 0;
         json cases = json::array();
+        json reasons = json::object();
         const forward::ClosureOptions base = with_settings({}, *sets);
         for (int i = 0; i < *runs; ++i) {
           const std::uint64_t ps = 5000 + static_cast<std::uint64_t>(rng.uniform_int(0, 1000000));
@@ -451,8 +452,10 @@ void register_bench(CLI::App& app, Context& ctx) {
             for (int v = 1; v < ed.la_surface->vres(); ++v) P.row(v * U + u + 1) = P.row(v * U + u);
           }
           std::string outcome, reason;
+          double wall = 0.0;
           try {
             const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
+            wall = r.summary.wall_s;
             bool finite = r.positions.allFinite();
             for (const auto& s : r.samples) finite = finite && s.la_surface.points().allFinite();
             if (!finite) {
@@ -475,8 +478,18 @@ void register_bench(CLI::App& app, Context& ctx) {
             outcome = "crash";
             reason = e.what();
           }
+          if (!reason.empty()) {
+            std::string kind = "other";
+            if (reason.find("inverted") != std::string::npos) kind = "inverted element";
+            else if (reason.find("pass through") != std::string::npos) kind = "leaflet crossing";
+            else if (reason.find("degenerate") != std::string::npos) kind = "degenerate anatomy";
+            else if (reason.find("linear solver") != std::string::npos) kind = "linear solver";
+            else if (reason.find("non-finite") != std::string::npos) kind = "non-finite values";
+            reasons[kind] = reasons.value(kind, 0) + 1;
+          }
           cases.push_back({{"patient_seed", ps},
                            {"dt", o.dt},
+                           {"wall_s", wall},
                            {"peak_pressure_mmhg", units::mpa_to_mmhg(par.peak_pressure_mpa)},
                            {"anatomy", anatomy},
                            {"outcome", outcome},
@@ -485,12 +498,13 @@ void register_bench(CLI::App& app, Context& ctx) {
                     << clean << " clean failures, " << crashes << " crashes, " << nonfinite
                     << " non-finite" << std::flush;
         }
-        std::cout << "\n";
+        std::cout << "\nclean failures by reason: " << reasons.dump() << "\n";
         json j{{"runs", *runs},
                {"converged", converged},
                {"clean_failures", clean},
                {"crashes", crashes},
                {"nonfinite_outputs", nonfinite},
+               {"clean_failure_reasons", reasons},
                {"seed", *seed},
                {"settings", *sets},
                {"cases", cases},
