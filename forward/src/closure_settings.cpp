@@ -98,6 +98,8 @@ const std::map<std::string, Field>& fields() {
             [](ClosureOptions& o) -> int& { return o.refactor_iterations; });
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
+    boolean("single_precision_preconditioner",
+            [](ClosureOptions& o) -> bool& { return o.single_precision_preconditioner; });
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.rotated_preconditioner; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });

@@ -226,7 +226,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   if (system.rows() != static_cast<int>(free_dofs.size()))
     throw Error("closure simulation: internal error (free dofs and system rows differ)");
   StepSolver linear({opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations,
-                     opt.refactor_iterations});
+                     opt.refactor_iterations, opt.single_precision_preconditioner});
 
   // The linearization of one step: element rotations, each cable's 3x3 tangent (its Hessian
   // with respect to either end point).

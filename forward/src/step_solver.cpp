@@ -80,6 +80,77 @@ class Factor {
   std::vector<int> outer_, inner_;
 };
 
+/// Eigen's CHOLMOD supernodal LL^T with access to CHOLMOD's factor.
+class SupernodalLLT
+    : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> {
+ public:
+  const cholmod_factor* factor() const { return m_cholmodFactor; }
+};
+
+/// A single-precision copy of a CHOLMOD supernodal LL^T factor (L L^T = P A P^T), solved by its
+/// own supernodal forward and backward substitution. As a preconditioner it needs no double
+/// precision, and a triangular solve reads the whole factor twice, memory-bound: floats halve
+/// the traffic.
+class FloatSupernodal {
+ public:
+  bool set(const cholmod_factor* L) {
+    if (!L || !L->is_super || !L->is_ll || L->itype != CHOLMOD_INT || L->xtype != CHOLMOD_REAL)
+      return false;
+    n_ = static_cast<int>(L->n);
+    const int ns = static_cast<int>(L->nsuper);
+    auto ints = [](const void* p, size_t count) {
+      const int* q = static_cast<const int*>(p);
+      return std::vector<int>(q, q + count);
+    };
+    super_ = ints(L->super, ns + 1);
+    pi_ = ints(L->pi, ns + 1);
+    px_ = ints(L->px, ns + 1);
+    s_ = ints(L->s, L->ssize);
+    perm_ = ints(L->Perm, L->n);
+    const double* x = static_cast<const double*>(L->x);
+    x_.resize(L->xsize);
+    for (size_t i = 0; i < L->xsize; ++i) x_[i] = static_cast<float>(x[i]);
+    return true;
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
+    Eigen::VectorXf y(n_), t;
+    for (int k = 0; k < n_; ++k) y[k] = static_cast<float>(b[perm_[k]]);
+    const int ns = static_cast<int>(super_.size()) - 1;
+    using Block = Eigen::Map<const Eigen::MatrixXf>;
+    for (int s = 0; s < ns; ++s) {  // L y = P b
+      const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
+      const Block Ls(x_.data() + px_[s], nr, nc);
+      auto y1 = y.segment(k1, nc);
+      Ls.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(y1);
+      if (nr > nc) {
+        t.noalias() = Ls.bottomRows(nr - nc) * y1;
+        const int* rows = s_.data() + pi_[s] + nc;
+        for (int i = 0; i < nr - nc; ++i) y[rows[i]] -= t[i];
+      }
+    }
+    for (int s = ns - 1; s >= 0; --s) {  // L^T x' = y
+      const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
+      const Block Ls(x_.data() + px_[s], nr, nc);
+      auto y1 = y.segment(k1, nc);
+      if (nr > nc) {
+        t.resize(nr - nc);
+        const int* rows = s_.data() + pi_[s] + nc;
+        for (int i = 0; i < nr - nc; ++i) t[i] = y[rows[i]];
+        y1.noalias() -= Ls.bottomRows(nr - nc).transpose() * t;
+      }
+      Ls.topRows(nc).triangularView<Eigen::Lower>().transpose().solveInPlace(y1);
+    }
+    Eigen::VectorXd out(n_);
+    for (int k = 0; k < n_; ++k) out[perm_[k]] = static_cast<double>(y[k]);
+    return out;
+  }
+
+ private:
+  int n_ = 0;
+  std::vector<int> super_, pi_, px_, s_, perm_;
+  std::vector<float> x_;
+};
+
 template <typename Solver>
 class FactorOf : public Factor {
  public:
@@ -110,6 +181,28 @@ class FactorOf : public Factor {
   Solver s_;
 };
 
+/// CHOLMOD supernodal, optionally applied as a preconditioner in single precision.
+class SupernodalFactor : public FactorOf<SupernodalLLT> {
+ public:
+  explicit SupernodalFactor(bool single) : single_(single) {}
+  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
+    if (single_ && have_float_) return float_.solve(b);
+    return FactorOf<SupernodalLLT>::apply(b);
+  }
+
+ protected:
+  bool numeric(const Eigen::SparseMatrix<double>& A) override {
+    const bool ok = FactorOf<SupernodalLLT>::numeric(A);
+    have_float_ = ok && single_ && float_.set(s_.factor());
+    return ok;
+  }
+
+ private:
+  bool single_;
+  bool have_float_ = false;
+  FloatSupernodal float_;
+};
+
 }  // namespace
 
 struct StepSolver::Impl {
@@ -130,8 +223,7 @@ StepSolver::StepSolver(const Options& o) : impl_(std::make_unique<Impl>()), opt_
       break;
     case LinearSolver::kCholmodSupernodal:
     case LinearSolver::kReusedFactorPcg:
-      impl_->factor = std::make_unique<
-          FactorOf<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>>>();
+      impl_->factor = std::make_unique<SupernodalFactor>(o.single_precision_preconditioner);
       break;
   }
 }

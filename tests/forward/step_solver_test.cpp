@@ -81,6 +81,32 @@ INSTANTIATE_TEST_SUITE_P(All, StepSolverTest,
                            return n;
                          });
 
+// The single-precision preconditioner: a supernodal factorization applied in float still gives
+// solutions to the tolerance (CG on the double operator makes up for the rounding, in a few
+// iterations), equal to the double-precision factor's to that tolerance.
+TEST(StepSolver, SinglePrecisionPreconditionerReachesTheTolerance) {
+  Rng rng(8);
+  Eigen::VectorXd b(2500);
+  for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
+  const Eigen::SparseMatrix<double> A = laplacian(50, 0.05);
+  Eigen::VectorXd xs, xd;
+  std::string why;
+  StepSolver::Options o;
+  o.kind = LinearSolver::kCholmodSupernodal;
+  o.pcg_tolerance = 1e-10;
+  o.single_precision_preconditioner = true;
+  StepSolver single(o);
+  ASSERT_TRUE(single.solve(A, b, &xs, &why)) << why;
+  o.single_precision_preconditioner = false;
+  StepSolver dbl(o);
+  ASSERT_TRUE(dbl.solve(A, b, &xd, &why)) << why;
+  EXPECT_LT((A * xs - b).norm(), 1e-10 * b.norm());
+  EXPECT_LT((xs - xd).norm(), 1e-8 * xd.norm());
+  EXPECT_GT(single.stats().pcg_iterations, 0);  // float rounding needs a few iterations ...
+  EXPECT_LT(single.stats().pcg_iterations, 8);  // ... but only a few
+  EXPECT_EQ(dbl.stats().pcg_iterations, 0);     // the double factor solves it outright
+}
+
 TEST(StepSolver, NamesRoundTrip) {
   for (LinearSolver k : {LinearSolver::kCholmodSupernodal, LinearSolver::kCholmodSimplicial,
                          LinearSolver::kEigenLdlt, LinearSolver::kReusedFactorPcg}) {

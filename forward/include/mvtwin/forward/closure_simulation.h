@@ -46,6 +46,8 @@ struct ClosureOptions {
   /// kReusedFactorPcg: precondition with the last factorization rotated by each node's
   /// rotation since (StepSolver::System::rotate).
   bool rotated_preconditioner = true;
+  /// Apply the factorization in single precision (StepSolver::Options).
+  bool single_precision_preconditioner = true;
   /// Prescribed boundary motion from the images; off = held at end-diastole (sensitivity).
   bool annulus_motion = true;
   bool papillary_motion = true;

@@ -43,6 +43,10 @@ class StepSolver {
     double pcg_tolerance = 1e-8;  ///< relative residual for kReusedFactorPcg
     int pcg_max_iterations = 25;  ///< beyond this, refactorize and solve directly
     int refactor_iterations = 8;  ///< a solve this long makes the next one refactorize
+    /// Supernodal kinds: apply the factorization as the preconditioner from a single-precision
+    /// copy (half the memory traffic of the memory-bound triangular solves; CG on the exact
+    /// double-precision operator still reaches any tolerance).
+    bool single_precision_preconditioner = true;
   };
   struct Stats {
     int analyses = 0, factorizations = 0, solves = 0, pcg_iterations = 0, pcg_fallbacks = 0;
