@@ -102,6 +102,7 @@ const std::map<std::string, Field>& fields() {
             [](ClosureOptions& o) -> bool& { return o.single_precision_preconditioner; });
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.rotated_preconditioner; });
+    boolean("curved", [](ClosureOptions& o) -> bool& { return o.model.curved; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
     boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact_ccd; });
     boolean("annulus_motion", [](ClosureOptions& o) -> bool& { return o.annulus_motion; });

@@ -99,14 +99,7 @@ std::string ClosureSummary::brief_report() const {
 ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& params,
                                const ClosureOptions& opt) {
   const auto t_start = Clock::now();
-  std::string err;
-  if (!opt.is_valid(&err)) throw Error("closure options: " + err);
-  if (seq.first_closed <= seq.end_diastole || seq.end_diastole < 0) {
-    throw Error(
-        "closure simulation: the sequence needs an end-diastolic frame before a first closed "
-        "frame");
-  }
-  const ClosureScene scene = make_closure_scene(seq, params, opt);
+  const ClosureScene scene = make_closure_scene(seq, params, opt);  // validates the options
   const ValveModel& model = scene.model;
   const SolidMesh& mesh = model.mesh;
   ElasticBody body(mesh, [&](int tag) {

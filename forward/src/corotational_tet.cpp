@@ -1,6 +1,8 @@
 #include "mvtwin/forward/corotational_tet.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Dense>
 
@@ -47,40 +49,77 @@ template <int N>
 CorotationalTet<N>::CorotationalTet(const Nodes& rest, const Stiffness6& C) : X_(rest) {
   Eigen::Matrix3d Dm;
   for (int j = 0; j < 3; ++j) Dm.col(j) = (X_.row(j + 1) - X_.row(0)).transpose();
-  volume_ = Dm.determinant() / 6.0;
   Dm_inv_ = Dm.inverse();
   K0_.setZero();
   if constexpr (N == 4) {
+    volume_ = Dm.determinant() / 6.0;
+    min_jacobian_ = Dm.determinant();
     const auto B = strain_matrix(Eigen::Vector4d::Constant(0.25));
     K0_ = volume_ * B.transpose() * C * B;
   } else {
-    // 4-point rule, exact for the quadratic integrand B^T C B of straight-sided T10.
+    // Isoparametric: mid-edge nodes may sit off the edges' midpoints (a curved leaflet). The
+    // 4-point rule is exact for B^T C B of straight-sided elements and of degree 2 otherwise.
     const double a = 0.5854101966249685, b = 0.1381966011250105;
+    volume_ = 0.0;
+    min_jacobian_ = std::numeric_limits<double>::infinity();
     for (int q = 0; q < 4; ++q) {
       Eigen::Vector4d L = Eigen::Vector4d::Constant(b);
       L[q] = a;
-      const auto B = strain_matrix(L);
-      K0_ += 0.25 * volume_ * B.transpose() * C * B;
+      double detJ = 0.0;
+      const auto B = strain_matrix(L, &detJ);
+      min_jacobian_ = std::min(min_jacobian_, detJ);
+      const double w = 0.25 * detJ / 6.0;
+      volume_ += w;
+      K0_ += w * B.transpose() * C * B;
     }
   }
 }
 
 template <int N>
+double CorotationalTet<N>::min_jacobian_of(const Nodes& X) {
+  Eigen::Matrix3d Dm;
+  for (int j = 0; j < 3; ++j) Dm.col(j) = (X.row(j + 1) - X.row(0)).transpose();
+  if (!(std::abs(Dm.determinant()) > 0.0)) return 0.0;
+  CorotationalTet<N> e;
+  e.X_ = X;
+  e.Dm_inv_ = Dm.inverse();
+  if constexpr (N == 4) return Dm.determinant();
+  const double a = 0.5854101966249685, b = 0.1381966011250105;
+  double worst = std::numeric_limits<double>::infinity();
+  for (int q = 0; q < 4; ++q) {
+    Eigen::Vector4d L = Eigen::Vector4d::Constant(b);
+    L[q] = a;
+    double detJ = 0.0;
+    e.strain_matrix(L, &detJ);
+    worst = std::min(worst, detJ);
+  }
+  return worst;
+}
+
+template <int N>
 typename CorotationalTet<N>::StrainMatrix CorotationalTet<N>::strain_matrix(
-    const Eigen::Vector4d& L) const {
-  // Gradients of the barycentric coordinates (constant on a straight-sided tet).
-  Eigen::Matrix<double, 4, 3> gL;
-  gL.bottomRows<3>() = Dm_inv_;
-  gL.row(0) = -Dm_inv_.colwise().sum();
+    const Eigen::Vector4d& L, double* det_jacobian) const {
   Eigen::Matrix<double, N, 3> gN;
   if constexpr (N == 4) {
-    gN = gL;
+    // Gradients of the barycentric coordinates (constant on a linear tet).
+    gN.template bottomRows<3>() = Dm_inv_;
+    gN.row(0) = -Dm_inv_.colwise().sum();
+    if (det_jacobian) *det_jacobian = 1.0 / Dm_inv_.determinant();
   } else {
-    for (int i = 0; i < 4; ++i) gN.row(i) = (4.0 * L[i] - 1.0) * gL.row(i);
+    // Derivatives of the shape functions with respect to the barycentric coordinates, then to
+    // xi = (L1, L2, L3) (L0 = 1 - L1 - L2 - L3), then to X through J = dX/dxi.
+    Eigen::Matrix<double, N, 4> dL = Eigen::Matrix<double, N, 4>::Zero();
+    for (int i = 0; i < 4; ++i) dL(i, i) = 4.0 * L[i] - 1.0;
     for (int k = 0; k < 6; ++k) {
       const int i = kEdge[k][0], j = kEdge[k][1];
-      gN.row(4 + k) = 4.0 * (L[j] * gL.row(i) + L[i] * gL.row(j));
+      dL(4 + k, i) = 4.0 * L[j];
+      dL(4 + k, j) = 4.0 * L[i];
     }
+    Eigen::Matrix<double, N, 3> dxi;
+    for (int k = 0; k < 3; ++k) dxi.col(k) = dL.col(k + 1) - dL.col(0);
+    const Eigen::Matrix3d J = X_.transpose() * dxi;  // J(d, k) = sum_a X_a,d dN_a/dxi_k
+    if (det_jacobian) *det_jacobian = J.determinant();
+    gN = dxi * J.inverse();  // rows: grad_X N_a = J^-T dN_a/dxi
   }
   StrainMatrix B = StrainMatrix::Zero();
   for (int a = 0; a < N; ++a) {
@@ -231,9 +270,8 @@ template <int N>
 void CorotationalTet<N>::warped_tangent(const Eigen::Matrix3d& R, Matrix* K) const {
   // R K0 R^T block-wise: first K0 R^T (right factor on every block), then R on the left.
   Matrix T;
-  const Eigen::Matrix3d Rt = R.transpose();
   for (int j = 0; j < N; ++j)
-    T.template middleCols<3>(3 * j).noalias() = K0_.template middleCols<3>(3 * j) * Rt;
+    T.template middleCols<3>(3 * j).noalias() = K0_.template middleCols<3>(3 * j) * R.transpose();
   for (int i = 0; i < N; ++i)
     K->template middleRows<3>(3 * i).noalias() = R * T.template middleRows<3>(3 * i);
 }

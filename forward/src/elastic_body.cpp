@@ -35,6 +35,10 @@ ElasticBody::ElasticBody(SolidMesh mesh,
       CorotationalTet<10>::Nodes X;
       rest(X);
       quadratic_.emplace_back(X, C);
+      if (!(quadratic_.back().min_jacobian() > 0.0)) {
+        throw Error("element " + std::to_string(e) +
+                    " is inverted inside (its mid-edge nodes fold it) at rest");
+      }
       guard_scale_.push_back(kappa * quadratic_.back().rest_volume());
     }
   }

@@ -37,6 +37,23 @@ struct CellKey {
   }
 };
 
+/// The four nodes of a pair and the weights that map their motion to the vertex's motion
+/// relative to its closest point on the triangle (J = [I, -w0 I, -w1 I, -w2 I]).
+struct Stencil {
+  int nodes[4];
+  double c[4];
+};
+Stencil stencil(const SelfContact::Pair& pr) {
+  return {{pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]},
+          {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]}};
+}
+/// scale_k x the pair's normal stiffness plus scale_c x its friction damping, as the 3x3 block
+/// that J^T (.) J spreads over the four nodes.
+Eigen::Matrix3d tangent_block(const SelfContact::Pair& pr, double scale_k, double scale_c) {
+  const Eigen::Matrix3d nn = pr.normal * pr.normal.transpose();
+  return scale_k * pr.stiffness * nn + scale_c * pr.eta * (Eigen::Matrix3d::Identity() - nn);
+}
+
 }  // namespace
 
 SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
@@ -399,17 +416,16 @@ double SelfContact::add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f) {
     if (pr.distance < dc && dc > 0) {
       energy += opt_.wall_factor * k * std::pow(dc - pr.distance, 3) / (6.0 * dc);
     }
-    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
-    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
+    const Stencil st = stencil(pr);
     const Eigen::Vector3d& n = pr.normal;
     // Normal force pushes the vertex away from the triangle (and the triangle back).
-    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) += c[a] * pr.force * n;
+    for (int a = 0; a < 4; ++a) f->segment<3>(3 * st.nodes[a]) += st.c[a] * pr.force * n;
     // Lagged Coulomb friction on the relative tangential velocity.
     Eigen::Vector3d vrel = Eigen::Vector3d::Zero();
-    for (int a = 0; a < 4; ++a) vrel += c[a] * v.segment<3>(3 * nodes[a]);
+    for (int a = 0; a < 4; ++a) vrel += st.c[a] * v.segment<3>(3 * st.nodes[a]);
     const Eigen::Vector3d vt = vrel - n * n.dot(vrel);
     pr.eta = opt_.friction * pr.force / std::max(vt.norm(), opt_.friction_slip_mm_per_s);
-    for (int a = 0; a < 4; ++a) f->segment<3>(3 * nodes[a]) -= c[a] * pr.eta * vt;
+    for (int a = 0; a < 4; ++a) f->segment<3>(3 * st.nodes[a]) -= st.c[a] * pr.eta * vt;
   }
   return energy;
 }
@@ -418,15 +434,11 @@ void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scal
                            Eigen::VectorXd* y) const {
   for (const Pair& pr : pairs_) {
     if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
-    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
-    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
-    const Eigen::Vector3d& n = pr.normal;
+    const Stencil st = stencil(pr);
     Eigen::Vector3d jp = Eigen::Vector3d::Zero();
-    for (int a = 0; a < 4; ++a) jp += c[a] * p.segment<3>(3 * nodes[a]);
-    const double jn = n.dot(jp);
-    const Eigen::Vector3d t =
-        scale_k * pr.stiffness * jn * n + scale_c * pr.eta * (jp - jn * n);
-    for (int a = 0; a < 4; ++a) y->segment<3>(3 * nodes[a]) += c[a] * t;
+    for (int a = 0; a < 4; ++a) jp += st.c[a] * p.segment<3>(3 * st.nodes[a]);
+    const Eigen::Vector3d t = tangent_block(pr, scale_k, scale_c) * jp;
+    for (int a = 0; a < 4; ++a) y->segment<3>(3 * st.nodes[a]) += st.c[a] * t;
   }
 }
 
@@ -434,12 +446,9 @@ void SelfContact::add_diagonal_blocks(double scale_k, double scale_c,
                                       SymmetricBlockMatrix* A) const {
   for (const Pair& pr : pairs_) {
     if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
-    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
-    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
-    const Eigen::Matrix3d nn = pr.normal * pr.normal.transpose();
-    const Eigen::Matrix3d B =
-        scale_k * pr.stiffness * nn + scale_c * pr.eta * (Eigen::Matrix3d::Identity() - nn);
-    for (int a = 0; a < 4; ++a) A->add_diagonal_block(nodes[a], c[a] * c[a] * B);
+    const Stencil st = stencil(pr);
+    const Eigen::Matrix3d B = tangent_block(pr, scale_k, scale_c);
+    for (int a = 0; a < 4; ++a) A->add_diagonal_block(st.nodes[a], st.c[a] * st.c[a] * B);
   }
 }
 
@@ -449,17 +458,14 @@ double SelfContact::add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
   const double energy = add_forces(v, f);
   for (const Pair& pr : pairs_) {
     if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
-    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
-    const double c[4] = {1.0, -pr.weights[0], -pr.weights[1], -pr.weights[2]};
-    const Eigen::Matrix3d nn = pr.normal * pr.normal.transpose();
-    const Eigen::Matrix3d B =
-        scale_k * pr.stiffness * nn + scale_c * pr.eta * (Eigen::Matrix3d::Identity() - nn);
+    const Stencil st = stencil(pr);
+    const Eigen::Matrix3d B = tangent_block(pr, scale_k, scale_c);
     for (int a = 0; a < 4; ++a) {
       for (int b = 0; b < 4; ++b) {
-        const Eigen::Matrix3d Bab = c[a] * c[b] * B;
+        const Eigen::Matrix3d Bab = st.c[a] * st.c[b] * B;
         for (int r = 0; r < 3; ++r) {
           for (int s = 0; s < 3; ++s)
-            trip->emplace_back(3 * nodes[a] + r, 3 * nodes[b] + s, Bab(r, s));
+            trip->emplace_back(3 * st.nodes[a] + r, 3 * st.nodes[b] + s, Bab(r, s));
         }
       }
     }

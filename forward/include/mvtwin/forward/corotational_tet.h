@@ -25,8 +25,8 @@ class CorotationalTet {
   using StrainMatrix = Eigen::Matrix<double, 6, kDofs>;
 
   CorotationalTet() = default;
-  /// Rest positions (mid-edge nodes at the edge midpoints) and the 6x6 global stiffness C in
-  /// MPa (Voigt, engineering shear). Precondition: positive rest volume.
+  /// Rest positions (mid-edge nodes at or near the edge midpoints: isoparametric) and the 6x6
+  /// global stiffness C in MPa (Voigt, engineering shear). Precondition: positive rest volume.
   CorotationalTet(const Nodes& rest, const Stiffness6& C);
 
   double rest_volume() const { return volume_; }
@@ -63,14 +63,21 @@ class CorotationalTet {
   /// Green-Lagrange-free small strain of the co-rotated displacement at the centroid, Voigt.
   Eigen::Matrix<double, 6, 1> centroid_strain(const Nodes& x) const;
 
-  /// Strain-displacement matrix at barycentric point L (rest configuration).
-  StrainMatrix strain_matrix(const Eigen::Vector4d& L) const;
+  /// Strain-displacement matrix at barycentric point L (rest configuration; isoparametric for
+  /// N = 10, so mid-edge nodes may sit off the edges' midpoints), and det dX/dxi there.
+  StrainMatrix strain_matrix(const Eigen::Vector4d& L, double* det_jacobian = nullptr) const;
+  /// Smallest det dX/dxi at the quadrature points (> 0 for a valid element; 6 x the volume for
+  /// a straight-sided one).
+  double min_jacobian() const { return min_jacobian_; }
+  /// The same for rest positions X without building the element.
+  static double min_jacobian_of(const Nodes& X);
 
  private:
   Nodes X_;
   Eigen::Matrix3d Dm_inv_;
   Matrix K0_;
   double volume_ = 0.0;
+  double min_jacobian_ = 0.0;
 };
 
 /// Polar decomposition F = R S with R a proper rotation; false when det F <= 0.

@@ -21,6 +21,9 @@ struct ModelOptions {
   int layers = 1;
   /// Quadratic tetrahedra do not lock in bending at nu = 0.488; linear ones do (SPEC Sec. 4).
   TetOrder order = TetOrder::kQuadratic;
+  /// Quadratic elements follow the curved leaflet (mid-edge nodes on the surface,
+  /// isoparametric) instead of faceting it with straight edges.
+  bool curved = true;
   /// Marginal chordae evenly on the free edge (the paper: 28; sensitivity: 56, 20, 16, 12).
   int marginal_chordae = 28;
   /// Leaflet thickness in mm (Mansi et al. 2012, after Votta 2008 / Kunzelman 2007).
@@ -95,6 +98,9 @@ struct ValveModel {
   /// Roughness of the end-diastolic grid as given, mm, and the smoothing passes it received.
   double input_roughness_mm = 0.0;
   int smoothing_passes = 0;
+  /// Quadratic elements kept straight-sided because curving them would distort them (counted
+  /// per pass of the check; 0 normally).
+  int straight_elements = 0;
 
   /// Corner node of surface node i on layer l (0 = atrial surface, layers = ventricular).
   int node(int i, int layer) const { return layer * surface_nodes + i; }
@@ -105,7 +111,11 @@ struct ValveModel {
 struct AtrialSampler {
   int ures = 0, vres = 0;
   std::vector<std::array<int, 3>> nodes;  ///< corner nodes (layer 0)
-  std::vector<Eigen::Vector3d> weights;
+  /// Mid-edge nodes of the triangle's edges 01, 12, 20 (quadratic meshes; -1 for linear ones):
+  /// the surface is then sampled with the 6-node triangle's shape functions, so that a
+  /// deformed (curved) quadratic surface is sampled as the elements represent it.
+  std::vector<std::array<int, 3>> mids;
+  std::vector<Eigen::Vector3d> weights;  ///< barycentric coordinates in the unrolled plane
 };
 AtrialSampler make_atrial_sampler(const ValveModel& model, int ures, int vres);
 /// The atrial surface at positions x (all nodes, flattened, mm) as a grid.
