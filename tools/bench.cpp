@@ -84,9 +84,10 @@ json summary_json(const Run& r) {
 }
 
 /// The converged reference of bench closure: a finer mesh, a 100x smaller step than the
-/// paper's, linear systems solved to 1e-6.
+/// paper's, linear systems solved to 1e-4 (the error against the reference does not move
+/// between 0.1 and 1e-3 at the paper's step: docs/forward-status.md).
 const std::vector<std::string> kReferenceSettings = {"ures=40", "vres=40", "dt=0.0001",
-                                                     "pcg_tolerance=1e-6"};
+                                                     "pcg_tolerance=1e-4"};
 
 std::string join(const std::vector<std::string>& v) {
   std::string out;

@@ -1,7 +1,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -92,12 +91,15 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "<ElementData type=\"mat_axis\""), 2);
   EXPECT_EQ(count(feb, "--"), 2) << "XML comments must not contain -- (only <!-- and -->)";
   const int curves = count(feb, "<load_controller id=");
-  std::set<int> defined, used;
-  const std::regex def("<load_controller id=\"([0-9]+)\""), use(" lc=\"([0-9]+)\"");
-  for (std::sregex_iterator it(feb.begin(), feb.end(), def), end; it != end; ++it)
-    defined.insert(std::stoi((*it)[1]));
-  for (std::sregex_iterator it(feb.begin(), feb.end(), use), end; it != end; ++it)
-    used.insert(std::stoi((*it)[1]));
+  // The integers following each occurrence of `key` (for example `lc="` -> 3).
+  const auto numbers_after = [&feb](const std::string& key) {
+    std::set<int> out;
+    for (std::size_t at = feb.find(key); at != std::string::npos; at = feb.find(key, at + 1))
+      out.insert(std::stoi(feb.substr(at + key.size(), 12)));
+    return out;
+  };
+  const std::set<int> defined = numbers_after("<load_controller id=\""),
+                      used = numbers_after(" lc=\"");
   EXPECT_EQ(static_cast<int>(defined.size()), curves);
   EXPECT_EQ(*defined.begin(), 1);
   EXPECT_EQ(*defined.rbegin(), curves);
