@@ -6,6 +6,9 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -150,6 +153,205 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
     std::cout << "wrote the reference to " << file << "\n";
   }
   return r.samples.back().la_surface;
+}
+
+/// One randomized case of bench stability, drawn in order from the sweep's generator.
+struct StabilityCase {
+  Patient patient;
+  ValveParameters parameters;
+  forward::ClosureOptions options;
+  std::uint64_t patient_seed = 0;
+  std::string anatomy = "clean";
+};
+
+StabilityCase draw_stability_case(Rng& rng, const forward::ClosureOptions& base) {
+  StabilityCase c;
+  c.patient_seed = 5000 + static_cast<std::uint64_t>(rng.uniform_int(0, 1000000));
+  c.patient = make_virtual_patient(c.patient_seed);
+  Patient& p = c.patient;
+  ValveParameters& par = c.parameters;
+  par = p.truth->parameters;
+  for (double& f : par.restlength_factor) f = rng.uniform(0.5, 1.5);
+  par.marginal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+  par.basal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+  par.al_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+  par.pl_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
+  par.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(0.0, 200.0));
+  c.options = base;
+  c.options.dt = std::exp(rng.uniform(std::log(0.001), std::log(0.1)));
+  const double a = rng.uniform();
+  ValveFrame& ed = p.sequence.frames[p.sequence.end_diastole];
+  if (a < 0.17) {
+    c.anatomy = "noisy";
+    const double sd = rng.uniform(0.3, 1.0);
+    for (int f = 0; f < p.sequence.num_frames(); ++f) {
+      if (!p.sequence.frames[f].la_surface) continue;
+      auto& P = p.sequence.frames[f].la_surface->points();
+      for (Eigen::Index k = p.sequence.ures; k < P.rows(); ++k)
+        for (int d = 0; d < 3; ++d) P(k, d) += rng.normal(0.0, sd);
+    }
+  } else if (a < 0.33) {
+    c.anatomy = "degenerate";
+    // Collapse two neighbouring columns onto one another.
+    auto& P = ed.la_surface->points();
+    const int U = ed.la_surface->ures(), u = rng.uniform_int(1, U - 2);
+    for (int v = 1; v < ed.la_surface->vres(); ++v) P.row(v * U + u + 1) = P.row(v * U + u);
+  }
+  return c;
+}
+
+/// Runs one case; never throws. Returns its row of the JSON table.
+json run_stability_case(const StabilityCase& c) {
+  std::string outcome, reason;
+  double wall = 0.0;
+  try {
+    const forward::ClosureResult r = forward::simulate_closure(c.patient.sequence, c.parameters, c.options);
+    wall = r.summary.wall_s;
+    bool finite = r.positions.allFinite();
+    for (const auto& s : r.samples) finite = finite && s.la_surface.points().allFinite();
+    if (!finite) {
+      outcome = "nonfinite_output";
+    } else if (r.summary.status == forward::ClosureStatus::kConverged) {
+      outcome = "converged";
+    } else {
+      outcome = "clean_failure";
+      reason = r.summary.reason;
+    }
+  } catch (const Error& e) {
+    outcome = "clean_failure";
+    reason = e.what();
+  } catch (const std::exception& e) {
+    outcome = "crash";
+    reason = e.what();
+  } catch (...) {
+    outcome = "crash";
+    reason = "unknown exception";
+  }
+  return {{"patient_seed", c.patient_seed},
+          {"dt", c.options.dt},
+          {"wall_s", wall},
+          {"peak_pressure_mmhg", units::mpa_to_mmhg(c.parameters.peak_pressure_mpa)},
+          {"anatomy", c.anatomy},
+          {"outcome", outcome},
+          {"reason", reason}};
+}
+
+std::string failure_kind(const std::string& reason) {
+  if (reason.find("inverted") != std::string::npos) return "inverted element";
+  if (reason.find("pass through") != std::string::npos) return "leaflet crossing";
+  if (reason.find("degenerate") != std::string::npos) return "degenerate anatomy";
+  if (reason.find("linear solver") != std::string::npos) return "linear solver";
+  if (reason.find("non-finite") != std::string::npos) return "non-finite values";
+  return "other";
+}
+
+/// bench stability: `runs` cases drawn in order from `seed` and simulated `threads` at a time.
+/// The JSON file is rewritten every 10 finished cases (marked incomplete) so that an
+/// interrupted sweep started again with the same seed and settings resumes where it was.
+int run_stability(const Context& ctx, const std::string& json_path, int runs, unsigned seed,
+                  int threads, const std::vector<std::string>& sets) {
+  const forward::ClosureOptions base = with_settings({}, sets);
+  std::vector<json> rows(static_cast<std::size_t>(runs));
+  int resumed = 0;
+  if (!json_path.empty() && std::filesystem::exists(json_path)) {
+    try {
+      std::ifstream f(json_path);
+      const json old = json::parse(f);
+      if (old.value("seed", 0u) == seed && old.value("settings", json::array()) == json(sets)) {
+        const json& cases = old.at("cases");
+        for (std::size_t i = 0; i < cases.size() && i < rows.size(); ++i) {
+          if (cases[i].is_null()) continue;
+          rows[i] = cases[i];
+          ++resumed;
+        }
+      }
+    } catch (const std::exception& e) {
+      std::cout << json_path << ": not a bench stability file (" << e.what()
+                << "); starting afresh\n";
+    }
+    if (resumed > 0) std::cout << "resuming: " << resumed << " runs from " << json_path << "\n";
+  }
+  auto summarize = [&](bool complete) {
+    int converged = 0, clean = 0, crashes = 0, nonfinite = 0, done = 0;
+    json reasons = json::object();
+    for (const json& r : rows) {
+      if (r.is_null()) continue;
+      ++done;
+      const std::string o = r.at("outcome");
+      if (o == "converged") ++converged;
+      else if (o == "clean_failure") ++clean;
+      else if (o == "crash") ++crashes;
+      else ++nonfinite;
+      const std::string reason = r.value("reason", "");
+      if (!reason.empty()) {
+        const std::string k = failure_kind(reason);
+        reasons[k] = reasons.value(k, 0) + 1;
+      }
+    }
+    return json{{"runs", runs},
+                {"finished", done},
+                {"complete", complete},
+                {"converged", converged},
+                {"clean_failures", clean},
+                {"crashes", crashes},
+                {"nonfinite_outputs", nonfinite},
+                {"clean_failure_reasons", reasons},
+                {"seed", seed},
+                {"settings", sets},
+                {"threads", threads},
+                {"synthetic", true},
+                {"cases", rows},
+                {"provenance", provenance(ctx)}};
+  };
+
+  Rng rng(seed);
+  std::mutex m;
+  int next = 0, since_write = 0;
+  auto worker = [&] {
+    for (;;) {
+      std::optional<StabilityCase> c;
+      int i = 0;
+      {
+        // Cases are drawn in index order under the lock, so case i is the same whichever
+        // thread runs it (and whether or not it was already run: its draws are still made).
+        std::lock_guard<std::mutex> lock(m);
+        while (next < runs) {
+          i = next++;
+          StabilityCase drawn = draw_stability_case(rng, base);
+          if (rows[static_cast<std::size_t>(i)].is_null()) {
+            c = std::move(drawn);
+            break;
+          }
+        }
+        if (!c) return;
+      }
+      json row = run_stability_case(*c);
+      std::lock_guard<std::mutex> lock(m);
+      rows[static_cast<std::size_t>(i)] = std::move(row);
+      const json s = summarize(false);
+      std::cout << "\r" << s.at("finished").get<int>() << "/" << runs << ": "
+                << s.at("converged").get<int>() << " converged, "
+                << s.at("clean_failures").get<int>() << " clean failures, "
+                << s.at("crashes").get<int>() << " crashes, " << s.at("nonfinite_outputs").get<int>()
+                << " non-finite" << std::flush;
+      if (++since_write >= 10 && !json_path.empty()) {
+        since_write = 0;
+        write_atomically(json_path, [&](const std::filesystem::path& tmp) {
+          std::ofstream f(tmp);
+          f << s.dump(1) << "\n";
+          if (!f) throw Error(json_path + ": cannot write");
+        });
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  const json j = summarize(true);
+  std::cout << "\nclean failures by reason: " << j.at("clean_failure_reasons").dump() << "\n";
+  write_json(json_path, j);
+  return j.at("crashes").get<int>() == 0 && j.at("nonfinite_outputs").get<int>() == 0 ? 0 : 5;
 }
 
 }  // namespace
@@ -408,111 +610,22 @@ void register_bench(CLI::App& app, Context& ctx) {
     auto json_path = std::make_shared<std::string>();
     auto runs = std::make_shared<int>(50);
     auto seed = std::make_shared<unsigned>(7);
+    auto threads = std::make_shared<int>(1);
     auto sets = std::make_shared<std::vector<std::string>>(
         std::vector<std::string>{"ures=20", "vres=10"});
-    cmd->add_option("--json", *json_path, "write the figures here");
+    cmd->add_option("--json", *json_path,
+                    "write the figures here (rewritten every 10 runs; a run interrupted and "
+                    "started again with the same seed and settings resumes from it)");
     cmd->add_option("--runs", *runs, "number of randomized runs")->default_val(50);
     cmd->add_option("--seed", *seed, "random seed")->default_val(7);
+    cmd->add_option("--threads", *threads,
+                    "runs simulated at once (each on one core; the draws, and so the cases, "
+                    "do not depend on it)")
+        ->default_val(1)
+        ->check(CLI::Range(1, 64));
     cmd->add_option("--set", *sets, "name=value for every run")->default_str("ures=20 vres=10");
     cmd->callback([=, &ctx] {
-      ctx.run = [=, &ctx] {
-        Rng rng(*seed);
-        int converged = 0, clean = 0, crashes = 0, nonfinite = 0;
-        json cases = json::array();
-        json reasons = json::object();
-        const forward::ClosureOptions base = with_settings({}, *sets);
-        for (int i = 0; i < *runs; ++i) {
-          const std::uint64_t ps = 5000 + static_cast<std::uint64_t>(rng.uniform_int(0, 1000000));
-          Patient p = make_virtual_patient(ps);
-          ValveParameters par = p.truth->parameters;
-          for (double& f : par.restlength_factor) f = rng.uniform(0.5, 1.5);
-          par.marginal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
-          par.basal_stiffness_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
-          par.al_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
-          par.pl_modulus_scale = std::exp(rng.uniform(std::log(0.2), std::log(5.0)));
-          par.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(0.0, 200.0));
-          forward::ClosureOptions o = base;
-          o.dt = std::exp(rng.uniform(std::log(0.001), std::log(0.1)));
-          std::string anatomy = "clean";
-          const double a = rng.uniform();
-          ValveFrame& ed = p.sequence.frames[p.sequence.end_diastole];
-          if (a < 0.17) {
-            anatomy = "noisy";
-            const double sd = rng.uniform(0.3, 1.0);
-            for (int f = 0; f < p.sequence.num_frames(); ++f) {
-              if (!p.sequence.frames[f].la_surface) continue;
-              auto& P = p.sequence.frames[f].la_surface->points();
-              for (Eigen::Index k = p.sequence.ures; k < P.rows(); ++k)
-                for (int c = 0; c < 3; ++c) P(k, c) += rng.normal(0.0, sd);
-            }
-          } else if (a < 0.33) {
-            anatomy = "degenerate";
-            // Collapse two neighbouring columns onto one another.
-            auto& P = ed.la_surface->points();
-            const int U = ed.la_surface->ures(), u = rng.uniform_int(1, U - 2);
-            for (int v = 1; v < ed.la_surface->vres(); ++v) P.row(v * U + u + 1) = P.row(v * U + u);
-          }
-          std::string outcome, reason;
-          double wall = 0.0;
-          try {
-            const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
-            wall = r.summary.wall_s;
-            bool finite = r.positions.allFinite();
-            for (const auto& s : r.samples) finite = finite && s.la_surface.points().allFinite();
-            if (!finite) {
-              ++nonfinite;
-              outcome = "nonfinite_output";
-            } else if (r.summary.status == forward::ClosureStatus::kConverged) {
-              ++converged;
-              outcome = "converged";
-            } else {
-              ++clean;
-              outcome = "clean_failure";
-              reason = r.summary.reason;
-            }
-          } catch (const Error& e) {
-            ++clean;
-            outcome = "clean_failure";
-            reason = e.what();
-          } catch (const std::exception& e) {
-            ++crashes;
-            outcome = "crash";
-            reason = e.what();
-          }
-          if (!reason.empty()) {
-            std::string kind = "other";
-            if (reason.find("inverted") != std::string::npos) kind = "inverted element";
-            else if (reason.find("pass through") != std::string::npos) kind = "leaflet crossing";
-            else if (reason.find("degenerate") != std::string::npos) kind = "degenerate anatomy";
-            else if (reason.find("linear solver") != std::string::npos) kind = "linear solver";
-            else if (reason.find("non-finite") != std::string::npos) kind = "non-finite values";
-            reasons[kind] = reasons.value(kind, 0) + 1;
-          }
-          cases.push_back({{"patient_seed", ps},
-                           {"dt", o.dt},
-                           {"wall_s", wall},
-                           {"peak_pressure_mmhg", units::mpa_to_mmhg(par.peak_pressure_mpa)},
-                           {"anatomy", anatomy},
-                           {"outcome", outcome},
-                           {"reason", reason}});
-          std::cout << "\r" << (i + 1) << "/" << *runs << ": " << converged << " converged, "
-                    << clean << " clean failures, " << crashes << " crashes, " << nonfinite
-                    << " non-finite" << std::flush;
-        }
-        std::cout << "\nclean failures by reason: " << reasons.dump() << "\n";
-        json j{{"runs", *runs},
-               {"converged", converged},
-               {"clean_failures", clean},
-               {"crashes", crashes},
-               {"nonfinite_outputs", nonfinite},
-               {"clean_failure_reasons", reasons},
-               {"seed", *seed},
-               {"settings", *sets},
-               {"cases", cases},
-               {"provenance", provenance(ctx)}};
-        write_json(*json_path, j);
-        return crashes == 0 && nonfinite == 0 ? 0 : 5;
-      };
+      ctx.run = [=, &ctx] { return run_stability(ctx, *json_path, *runs, *seed, *threads, *sets); };
     });
   }
 }
