@@ -172,6 +172,8 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
 
 }  // namespace
 
+void refuse_overwrite_path(const fs::path& p, bool force) { refuse_overwrite(p, force); }
+
 void register_commands(CLI::App& app, Context& ctx) {
   // ---- phantom ---------------------------------------------------------------------------------
   {
@@ -199,8 +201,8 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_flag("--simulate-closure", *closure,
                   "fill the closing frames by a fine simulation with the hidden parameters");
     cmd->add_option("--closure-set", *closure_sets,
-                    "name=value for that simulation (default: ures = vres = 40, 2 layers, "
-                    "dt = 0.0025 s, stiff contact)");
+                    "name=value for that simulation (default: ures = vres = 40, 3 layers, "
+                    "dt = 0.001 s, linear systems to 1e-3)");
     cmd->add_option("--noise", *noise, "detection-like noise on the simulated surfaces, mm")
         ->default_val(0.5);
     cmd->callback([=, &ctx] {

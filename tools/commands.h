@@ -1,4 +1,5 @@
 #pragma once
+#include <filesystem>
 #include <functional>
 #include <string>
 
@@ -15,5 +16,9 @@ struct Context {
 void register_commands(CLI::App& app, Context& ctx);
 /// mvtwin bench closure | accuracy | stability (tools/bench.cpp).
 void register_bench(CLI::App& app, Context& ctx);
+/// mvtwin calibrate (tools/calibrate.cpp).
+void register_calibrate(CLI::App& app, Context& ctx);
+/// Throws mvtwin::Error when `path` exists and `force` is not set.
+void refuse_overwrite_path(const std::filesystem::path& path, bool force);
 
 }  // namespace mvtwin::tools

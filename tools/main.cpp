@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   for (int i = 0; i < argc; ++i) ctx.command_line += (i ? " " : "") + std::string(argv[i]);
   mvtwin::tools::register_commands(app, ctx);
   mvtwin::tools::register_bench(app, ctx);
+  mvtwin::tools::register_calibrate(app, ctx);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

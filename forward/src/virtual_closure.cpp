@@ -15,8 +15,8 @@ ClosureOptions VirtualClosureOptions::fine_default() {
   ClosureOptions o;
   o.model.ures = 40;
   o.model.vres = 40;
-  o.model.layers = 2;
-  o.dt = 2.5e-3;
+  o.model.layers = 3;
+  o.dt = 1e-3;
   o.pcg_tolerance = 1e-3;  // a tenth of the calibration model's linear-solve tolerance
   return o;
 }

@@ -17,7 +17,8 @@ struct VirtualClosureOptions {
   double noise_mm = 0.5;
 
   /// A finer model than the calibration default (ures = vres = 30, 1 layer, dt = 0.01 s):
-  /// ures = vres = 40, 2 layers, dt = 2.5e-3 s, linear systems solved to 1e-3.
+  /// ures = vres = 40, 3 layers through the thickness, dt = 1e-3 s, linear systems solved
+  /// to 1e-3 (SPEC Sec. 8: finer mesh, smaller step, several layers).
   static ClosureOptions fine_default();
 };
 

@@ -1,0 +1,174 @@
+#include "mvtwin/core/calibration_file.h"
+
+#include "hdf5_io.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/core/version.h"
+
+namespace mvtwin {
+namespace {
+
+constexpr const char* kFormat = "mvtwin-calibration";
+constexpr long kFormatVersion = 1;
+
+std::vector<double> vec(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
+/// Row-major copy of a matrix.
+std::vector<double> rows(const Eigen::MatrixXd& m) {
+  std::vector<double> out;
+  out.reserve(static_cast<size_t>(m.size()));
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j) out.push_back(m(i, j));
+  return out;
+}
+
+}  // namespace
+
+void write_calibration_file(const std::filesystem::path& path, const CalibrationRecord& r) {
+  const auto n = static_cast<Eigen::Index>(r.names.size());
+  const auto H = r.history_simulation.size();
+  for (const Eigen::VectorXd* v : {&r.lower, &r.upper, &r.start, &r.fitted, &r.sd, &r.truth}) {
+    if (v->size() != n) throw Error(path.string() + ": per-parameter arrays of different lengths");
+  }
+  if (static_cast<Eigen::Index>(r.units.size()) != n ||
+      static_cast<Eigen::Index>(r.identified.size()) != n || r.covariance.rows() != n ||
+      r.covariance.cols() != n || r.correlation.rows() != n || r.correlation.cols() != n) {
+    throw Error(path.string() + ": per-parameter arrays of different lengths");
+  }
+  if (r.history_error_mm.size() != H || r.history_best_mm.size() != H ||
+      static_cast<size_t>(r.history_x.rows()) != H || (H > 0 && r.history_x.cols() != n)) {
+    throw Error(path.string() + ": history arrays of different lengths");
+  }
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    h5::Location root = h5::Location::create_file(tmp);
+    root.attr("format", std::string(kFormat));
+    root.attr("format_version", kFormatVersion);
+    root.attr("patient_id", r.patient_id);
+    root.attr("patient_file", r.patient_file);
+    root.attr("synthetic", static_cast<long>(r.synthetic));
+    root.attr("data_origin", std::string(r.synthetic
+                                             ? "SYNTHETIC: calibration of a virtual patient"
+                                             : "calibration of real or user-provided data"));
+    root.attr("mvtwin_version",
+              r.provenance.version.empty() ? std::string(kVersion) : r.provenance.version);
+    root.attr("command", r.provenance.command);
+    root.attr("created_utc", r.provenance.created_utc);
+    root.attr("seed", static_cast<long>(r.provenance.seed));
+    root.attr("method", r.method);
+    root.attr("termination", r.termination);
+    std::vector<std::string> opts;
+    for (const auto& [k, v] : r.options) opts.push_back(k + "=" + v);
+    root.write_strings("options", opts);
+
+    const h5::Location fit = root.create_group("fit");
+    fit.attr("description",
+             std::string("per fitted parameter (user units, see units): bounds, start, fitted "
+                         "value, standard deviation and covariance from J^T J scaled by "
+                         "noise_mm, correlation; truth is the virtual patient's hidden value "
+                         "(NaN for real data); identified = 1 where the data determine it"));
+    fit.write_strings("names", r.names);
+    fit.write_strings("units", r.units);
+    const auto N = static_cast<hsize_t>(n);
+    fit.write("lower", vec(r.lower), {N});
+    fit.write("upper", vec(r.upper), {N});
+    fit.write("start", vec(r.start), {N});
+    fit.write("fitted", vec(r.fitted), {N});
+    fit.write("sd", vec(r.sd), {N});
+    fit.write("truth", vec(r.truth), {N});
+    fit.write("identified", r.identified, {N});
+    fit.write("covariance", rows(r.covariance), {N, N});
+    fit.write("correlation", rows(r.correlation), {N, N});
+    fit.write_scalar("noise_mm", r.noise_mm, "mm");
+    fit.write_scalar("error_before_mm", r.error_before_mm, "mm");
+    fit.write_scalar("error_after_mm", r.error_after_mm, "mm");
+    fit.write_scalar("simulations", r.simulations, nullptr);
+    fit.write_scalar("failed_simulations", r.failed_simulations, nullptr);
+    fit.write_scalar("cache_hits", r.cache_hits, nullptr);
+    fit.write_scalar("wall_s", r.wall_s, "s");
+
+    const h5::Location par = root.create_group("parameters", true);
+    r.parameters.for_each([&](const std::string& name, double v, const char* unit) {
+      par.write_scalar(name, v, unit);
+    });
+
+    const h5::Location hist = root.create_group("history");
+    hist.write("simulation", r.history_simulation, {H});
+    hist.write("error_mm", r.history_error_mm, {H}, "mm (NaN: failed simulation)");
+    hist.write("best_mm", r.history_best_mm, {H}, "mm");
+    hist.write("x", rows(r.history_x), {H, N});
+  });
+}
+
+CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
+  const h5::Location root = h5::Location::open_file(path);
+  if (!root.has_attr("format") || root.attr_string("format") != kFormat) {
+    root.fail("", std::string("not an mvtwin calibration file (root attribute format != '") +
+                      kFormat + "')");
+  }
+  if (root.attr_long("format_version") > kFormatVersion) {
+    root.fail("", "format_version is newer than this mvtwin reads");
+  }
+  CalibrationRecord r;
+  r.patient_id = root.attr_string("patient_id");
+  r.patient_file = root.attr_string("patient_file");
+  r.synthetic = root.attr_long("synthetic") != 0;
+  r.provenance.version = root.attr_string("mvtwin_version");
+  r.provenance.command = root.attr_string("command");
+  r.provenance.created_utc = root.attr_string("created_utc");
+  r.provenance.seed = static_cast<std::uint64_t>(root.attr_long("seed"));
+  r.method = root.attr_string("method");
+  r.termination = root.attr_string("termination");
+  for (const std::string& kv : root.read_strings("options")) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) root.fail("options", "entry without '=': " + kv);
+    r.options.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  const h5::Location fit = root.open_group("fit");
+  r.names = fit.read_strings("names");
+  const long n = static_cast<long>(r.names.size());
+  r.units = fit.read_strings("units");
+  if (static_cast<long>(r.units.size()) != n) fit.fail("units", "one unit per name needed");
+  std::vector<hsize_t> d;
+  auto v = [&](const char* name) {
+    const std::vector<double> x = fit.read_doubles(name, &d, {n}, "(n)");
+    return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(x.data(), n));
+  };
+  auto m = [&](const char* name) {
+    const std::vector<double> x = fit.read_doubles(name, &d, {n, n}, "(n, n)");
+    return Eigen::MatrixXd(
+        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            x.data(), n, n));
+  };
+  r.lower = v("lower");
+  r.upper = v("upper");
+  r.start = v("start");
+  r.fitted = v("fitted");
+  r.sd = v("sd");
+  r.truth = v("truth");
+  r.identified = fit.read_ints("identified", &d, {n}, "(n)");
+  r.covariance = m("covariance");
+  r.correlation = m("correlation");
+  r.noise_mm = fit.read_scalar("noise_mm");
+  r.error_before_mm = fit.read_scalar("error_before_mm");
+  r.error_after_mm = fit.read_scalar("error_after_mm");
+  r.simulations = static_cast<int>(fit.read_scalar("simulations"));
+  r.failed_simulations = static_cast<int>(fit.read_scalar("failed_simulations"));
+  r.cache_hits = static_cast<int>(fit.read_scalar("cache_hits"));
+  r.wall_s = fit.read_scalar("wall_s");
+  const h5::Location par = root.open_group("parameters");
+  r.parameters.for_each([&](const std::string& name, double& x, const char*) {
+    x = par.read_scalar(name);
+  });
+  if (!r.fitted.allFinite()) fit.fail("fitted", "non-finite fitted value");
+  const h5::Location hist = root.open_group("history");
+  r.history_simulation = hist.read_ints("simulation", &d, {-1}, "(H)");
+  const long H = static_cast<long>(d[0]);
+  r.history_error_mm = hist.read_doubles("error_mm", &d, {H}, "(H)");
+  r.history_best_mm = hist.read_doubles("best_mm", &d, {H}, "(H)");
+  const std::vector<double> x = hist.read_doubles("x", &d, {H, n}, "(H, n)");
+  r.history_x = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      x.data(), H, n);
+  return r;
+}
+
+}  // namespace mvtwin

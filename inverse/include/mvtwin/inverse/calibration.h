@@ -1,0 +1,74 @@
+#pragma once
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mvtwin/core/calibration_file.h"
+#include "mvtwin/inverse/closure_objective.h"
+
+namespace mvtwin::inverse {
+
+struct CalibrationOptions {
+  /// "bobyqa" (NLopt, default), "cobyla", "neldermead", "sbplx" (NLopt, derivative-free), or
+  /// "ceres" (Levenberg-Marquardt, finite-difference Jacobian whose perturbed simulations run
+  /// in parallel, robust Huber loss).
+  std::string method = "bobyqa";
+  int jobs = 2;                 ///< simulations at once (TBB)
+  int max_simulations = 80;     ///< budget (NLopt: evaluations; Ceres: iterations x (n + 1))
+  /// Stop when a step changes every parameter by less than this many of its scales.
+  double step_tolerance = 0.05;
+  /// Stop when the mean error improves by less than this, mm.
+  double error_tolerance = 1e-3;
+  /// Ceres: Huber loss width, mm (residuals beyond it count linearly).
+  double huber_mm = 2.0;
+  /// Ceres: forward-difference step in scales of each parameter.
+  double fd_step = 0.25;
+  /// Observation noise SD for the covariance, mm; <= 0: the fit's residual RMS.
+  double noise_mm = 0.0;
+  /// Called after every improvement and every iteration.
+  std::function<void(int iteration, double best_mm, int simulations)> progress;
+};
+
+struct HistoryEntry {
+  int simulation = 0;       ///< simulations run so far
+  double error_mm = 0;      ///< this candidate's mean error (NaN when it failed)
+  double best_mm = 0;       ///< best so far
+  Eigen::VectorXd x;
+};
+
+struct CalibrationResult {
+  std::string method, termination;
+  std::vector<ParameterSpec> specs;
+  Eigen::VectorXd start, fitted;
+  /// Standard deviations and covariance (user units) from J^T J at the fit, scaled by the
+  /// noise SD; correlation matrix. NaN where J^T J is singular.
+  Eigen::VectorXd sd;
+  Eigen::MatrixXd covariance, correlation;
+  /// Whether the data determine each parameter: its sd below half its scale.
+  std::vector<bool> identified;
+  double noise_mm = 0;
+  double error_before_mm = 0, error_after_mm = 0;
+  int simulations = 0, failed_simulations = 0, cache_hits = 0;
+  double wall_s = 0;
+  std::vector<HistoryEntry> history;
+  ValveParameters parameters;  ///< the fitted set (base plus fitted values)
+};
+
+/// Fits the objective's parameters. Failed candidate simulations are counted and penalized
+/// (NLopt) or rejected (Ceres: the step is refused); they never end the fit. Throws
+/// mvtwin::Error for an unknown method or when the start point itself cannot be simulated.
+CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& options = {});
+
+/// Covariance of the fit from the Jacobian of the residuals (n columns, user units) and the
+/// noise SD: sigma^2 (J^T J)^-1, pseudo-inverse on the well-determined subspace.
+void fill_uncertainty(const Eigen::MatrixXd& J, double noise_mm, CalibrationResult* result);
+
+/// The result as a file record (core/calibration_file.h): the fit, the simulation options, and,
+/// for a virtual patient, the hidden values beside the fitted ones. Provenance is the caller's.
+CalibrationRecord make_calibration_record(const CalibrationResult& result, const Patient& patient,
+                                          const forward::ClosureOptions& simulation,
+                                          const CalibrationOptions& options);
+
+}  // namespace mvtwin::inverse

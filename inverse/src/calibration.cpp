@@ -1,0 +1,381 @@
+#include "mvtwin/inverse/calibration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+
+#include <Eigen/Eigenvalues>
+#include <ceres/ceres.h>
+#include <nlopt.hpp>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/forward/closure_settings.h"
+
+namespace mvtwin::inverse {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// Evaluations through one place: history, best point, progress.
+class Tracker {
+ public:
+  Tracker(ClosureObjective& objective, const CalibrationOptions& options)
+      : objective_(objective), options_(options) {}
+
+  Evaluation evaluate(const Eigen::VectorXd& x) { return record(x, objective_.evaluate(x)); }
+  std::vector<Evaluation> evaluate_many(const std::vector<Eigen::VectorXd>& xs) {
+    std::vector<Evaluation> es = objective_.evaluate_many(xs, options_.jobs);
+    for (size_t i = 0; i < xs.size(); ++i) record(xs[i], es[i]);
+    return es;
+  }
+  const Eigen::VectorXd& best_x() const { return best_x_; }
+  double best() const { return best_; }
+  std::vector<HistoryEntry> history() const { return history_; }
+  /// Penalty for a failed candidate: clearly worse than anything seen, but finite so that a
+  /// model-based optimizer's model stays usable.
+  double penalty() const { return std::isfinite(worst_) ? 2.0 * worst_ + 1.0 : 50.0; }
+  int iteration = 0;
+
+ private:
+  Evaluation record(const Eigen::VectorXd& x, Evaluation e) {
+    std::lock_guard<std::mutex> lock(m_);
+    if (e.cached) return e;
+    if (e.ok) {
+      worst_ = std::isfinite(worst_) ? std::max(worst_, e.mean_mm) : e.mean_mm;
+      if (!(e.mean_mm >= best_)) {
+        best_ = e.mean_mm;
+        best_x_ = x;
+      }
+    }
+    history_.push_back({objective_.simulations(), e.ok ? e.mean_mm : kNaN, best_, x});
+    if (options_.progress) options_.progress(iteration, best_, objective_.simulations());
+    return e;
+  }
+  ClosureObjective& objective_;
+  const CalibrationOptions& options_;
+  std::mutex m_;
+  Eigen::VectorXd best_x_;
+  double best_ = std::numeric_limits<double>::infinity();
+  double worst_ = kNaN;
+  std::vector<HistoryEntry> history_;
+};
+
+nlopt::algorithm nlopt_algorithm(const std::string& m) {
+  if (m == "bobyqa") return nlopt::LN_BOBYQA;
+  if (m == "cobyla") return nlopt::LN_COBYLA;
+  if (m == "neldermead") return nlopt::LN_NELDERMEAD;
+  if (m == "sbplx") return nlopt::LN_SBPLX;
+  throw Error("calibrate: unknown method '" + m +
+              "' (bobyqa, cobyla, neldermead, sbplx, ceres)");
+}
+
+std::string nlopt_result_name(nlopt::result r) {
+  switch (r) {
+    case nlopt::SUCCESS: return "success";
+    case nlopt::STOPVAL_REACHED: return "stop value reached";
+    case nlopt::FTOL_REACHED: return "error tolerance reached";
+    case nlopt::XTOL_REACHED: return "step tolerance reached";
+    case nlopt::MAXEVAL_REACHED: return "simulation budget used";
+    case nlopt::MAXTIME_REACHED: return "time limit reached";
+    default: return "nlopt result " + std::to_string(static_cast<int>(r));
+  }
+}
+
+struct Scaling {
+  Eigen::VectorXd x0, scale, zlo, zhi;
+  Eigen::VectorXd x(const double* z) const {
+    return x0 + scale.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(z, x0.size()));
+  }
+};
+
+std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o) {
+  const int n = static_cast<int>(s.x0.size());
+  nlopt::opt opt(nlopt_algorithm(o.method), static_cast<unsigned>(n));
+  std::vector<double> lo(s.zlo.data(), s.zlo.data() + n), hi(s.zhi.data(), s.zhi.data() + n);
+  opt.set_lower_bounds(lo);
+  opt.set_upper_bounds(hi);
+  // One scale per parameter as the first step, smaller where a bound is nearer.
+  std::vector<double> step(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) step[i] = std::min({1.0, 0.5 * (hi[i] - lo[i]), 1.0});
+  opt.set_initial_step(step);
+  opt.set_xtol_abs(o.step_tolerance);
+  opt.set_ftol_abs(o.error_tolerance);
+  opt.set_maxeval(o.max_simulations);
+  // BOBYQA and COBYLA start by evaluating the start point and one step along each axis
+  // (both directions for BOBYQA): run those in parallel now, so that the optimizer finds
+  // them in the objective's cache.
+  std::vector<Eigen::VectorXd> first{s.x0};
+  if (o.jobs > 1 && (o.method == "bobyqa" || o.method == "cobyla")) {
+    for (int i = 0; i < n; ++i) {
+      for (double sign : {1.0, -1.0}) {
+        if (sign < 0 && o.method == "cobyla") continue;
+        Eigen::VectorXd z = Eigen::VectorXd::Zero(n);
+        z[i] = sign * step[i];
+        if (z[i] >= s.zlo[i] && z[i] <= s.zhi[i]) first.push_back(s.x(z.data()));
+      }
+    }
+  }
+  tr.evaluate_many(first);
+  auto f = [&](const std::vector<double>& z, std::vector<double>&) {
+    const Evaluation e = tr.evaluate(s.x(z.data()));
+    ++tr.iteration;
+    return e.ok ? e.mean_mm : tr.penalty();
+  };
+  using F = decltype(f);
+  opt.set_min_objective(
+      [](const std::vector<double>& z, std::vector<double>& g, void* data) {
+        return (*static_cast<F*>(data))(z, g);
+      },
+      &f);
+  std::vector<double> z(static_cast<size_t>(n), 0.0);
+  double fmin = 0;
+  try {
+    return nlopt_result_name(opt.optimize(z, fmin));
+  } catch (const nlopt::roundoff_limited&) {
+    return "round-off limited (the best point is kept)";
+  } catch (const std::runtime_error& e) {
+    return std::string("nlopt stopped: ") + e.what() + " (the best point is kept)";
+  }
+}
+
+/// The residuals as Ceres sees them: robustified per residual (Huber: r -> sqrt(rho(r^2))),
+/// with a forward-difference Jacobian whose n perturbed simulations run in parallel.
+class ClosureCost : public ceres::CostFunction {
+ public:
+  ClosureCost(Tracker& tr, const Scaling& s, const CalibrationOptions& o, int m)
+      : tr_(tr), s_(s), o_(o) {
+    set_num_residuals(m);
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(s.x0.size()));
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const int n = static_cast<int>(s_.x0.size()), m = num_residuals();
+    const double* z = parameters[0];
+    std::vector<Eigen::VectorXd> xs{s_.x(z)};
+    std::vector<double> h(static_cast<size_t>(n));
+    const bool jac = jacobians && jacobians[0];
+    if (jac) {
+      for (int i = 0; i < n; ++i) {
+        // Forward differences, backward at the upper bound.
+        h[i] = z[i] + o_.fd_step <= s_.zhi[i] ? o_.fd_step : -o_.fd_step;
+        Eigen::VectorXd zi = Eigen::Map<const Eigen::VectorXd>(z, n);
+        zi[i] += h[i];
+        xs.push_back(s_.x(zi.data()));
+      }
+    }
+    const std::vector<Evaluation> es = tr_.evaluate_many(xs);
+    ++tr_.iteration;
+    if (!es[0].ok) return false;  // Ceres rejects the step and shrinks its trust region
+    Eigen::VectorXd rt(m), dr(m);
+    for (int k = 0; k < m; ++k) {
+      const double r = es[0].residuals[k], d2 = o_.huber_mm * o_.huber_mm;
+      if (r * r <= d2) {
+        rt[k] = r;
+        dr[k] = 1.0;
+      } else {
+        const double rho = 2.0 * o_.huber_mm * std::abs(r) - d2;
+        rt[k] = std::sqrt(rho);
+        dr[k] = o_.huber_mm * (r > 0 ? 1.0 : -1.0) / rt[k];
+      }
+      residuals[k] = rt[k];
+    }
+    if (jac) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+          jacobians[0], m, n);
+      for (int i = 0; i < n; ++i) {
+        if (!es[1 + i].ok) {
+          J.col(i).setZero();  // this direction failed: no information along it this step
+          continue;
+        }
+        J.col(i) = dr.cwiseProduct(es[1 + i].residuals - es[0].residuals) / h[i];
+      }
+    }
+    return true;
+  }
+
+ private:
+  Tracker& tr_;
+  const Scaling& s_;
+  const CalibrationOptions& o_;
+};
+
+std::string run_ceres(Tracker& tr, const Scaling& s, const CalibrationOptions& o, int m) {
+  const int n = static_cast<int>(s.x0.size());
+  std::vector<double> z(static_cast<size_t>(n), 0.0);
+  ceres::Problem::Options po;
+  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  ClosureCost cost(tr, s, o, m);
+  problem.AddResidualBlock(&cost, nullptr, z.data());
+  for (int i = 0; i < n; ++i) {
+    problem.SetParameterLowerBound(z.data(), i, s.zlo[i]);
+    problem.SetParameterUpperBound(z.data(), i, s.zhi[i]);
+  }
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = std::max(1, o.max_simulations / (n + 1));
+  so.parameter_tolerance = 1e-3;
+  so.function_tolerance = 1e-4;
+  so.initial_trust_region_radius = 1.0;  // one scale per parameter
+  so.num_threads = 1;                    // the parallelism is in the Jacobian's simulations
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  return std::string("ceres: ") + summary.message;
+}
+
+}  // namespace
+
+void fill_uncertainty(const Eigen::MatrixXd& J, double noise_mm, CalibrationResult* r) {
+  const int n = static_cast<int>(J.cols());
+  r->noise_mm = noise_mm;
+  const Eigen::MatrixXd JtJ = J.transpose() * J;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(JtJ);
+  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  Eigen::MatrixXd inv = Eigen::MatrixXd::Zero(n, n);
+  std::vector<bool> in_null(static_cast<size_t>(n), false);
+  for (int k = 0; k < n; ++k) {
+    const double l = es.eigenvalues()[k];
+    if (l > 1e-10 * top && l > 0) {
+      inv += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / l;
+    } else {
+      // A direction the data do not see: every parameter it moves is unidentified.
+      for (int i = 0; i < n; ++i)
+        if (std::abs(es.eigenvectors()(i, k)) > 0.1) in_null[i] = true;
+    }
+  }
+  r->covariance = noise_mm * noise_mm * inv;
+  r->sd.resize(n);
+  r->correlation.resize(n, n);
+  r->identified.assign(static_cast<size_t>(n), false);
+  for (int i = 0; i < n; ++i) {
+    r->sd[i] = in_null[i] ? kNaN : std::sqrt(std::max(0.0, r->covariance(i, i)));
+    for (int j = 0; j < n; ++j) {
+      const double d = std::sqrt(r->covariance(i, i) * r->covariance(j, j));
+      r->correlation(i, j) = in_null[i] || in_null[j] || !(d > 0) ? kNaN : r->covariance(i, j) / d;
+    }
+    r->identified[i] = !in_null[i] && i < static_cast<int>(r->specs.size()) &&
+                       r->sd[i] <= r->specs[i].scale;
+  }
+}
+
+CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& o) {
+  if (o.method != "ceres") nlopt_algorithm(o.method);  // unknown names fail before any work
+  if (!(o.jobs >= 1 && o.max_simulations >= 1 && o.step_tolerance > 0 &&
+        o.error_tolerance >= 0 && o.huber_mm > 0 && o.fd_step > 0)) {
+    throw Error("calibrate: jobs, budget, tolerances, Huber width and step must be positive");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const ParameterSpace& space = objective.space();
+  CalibrationResult r;
+  r.method = o.method;
+  r.specs = space.specs();
+  Scaling s;
+  s.x0 = space.start();
+  s.scale = space.scales();
+  s.zlo = (space.lower() - s.x0).cwiseQuotient(s.scale);
+  s.zhi = (space.upper() - s.x0).cwiseQuotient(s.scale);
+  r.start = s.x0;
+
+  Tracker tr(objective, o);
+  const Evaluation e0 = tr.evaluate(s.x0);
+  if (!e0.ok) throw Error("calibrate: the start point cannot be simulated: " + e0.reason);
+  r.error_before_mm = e0.mean_mm;
+
+  r.termination = o.method == "ceres" ? run_ceres(tr, s, o, objective.num_residuals())
+                                      : run_nlopt(tr, s, o);
+  r.fitted = tr.best_x();
+  r.error_after_mm = tr.best();
+  r.parameters = space.apply(r.fitted);
+
+  // Uncertainty: the Jacobian at the fit by forward differences (n simulations in parallel,
+  // backwards at an upper bound), on the plain distances.
+  const int n = space.size();
+  std::vector<Eigen::VectorXd> xs;
+  std::vector<double> h(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    h[i] = (r.fitted[i] + 0.5 * s.scale[i] <= space.upper()[i] ? 0.5 : -0.5) * s.scale[i];
+    Eigen::VectorXd x = r.fitted;
+    x[i] += h[i];
+    xs.push_back(x);
+  }
+  const std::vector<Evaluation> es = tr.evaluate_many(xs);
+  const Evaluation best = objective.evaluate(r.fitted);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(objective.num_residuals(), n);
+  for (int i = 0; i < n; ++i)
+    if (es[i].ok && best.ok) J.col(i) = (es[i].residuals - best.residuals) / h[i];
+  const double rms = best.ok ? std::sqrt(best.residuals.squaredNorm() / best.residuals.size()) : kNaN;
+  fill_uncertainty(J, o.noise_mm > 0 ? o.noise_mm : rms, &r);
+
+  r.history = tr.history();
+  r.simulations = objective.simulations();
+  r.failed_simulations = objective.failed_simulations();
+  r.cache_hits = objective.cache_hits();
+  r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+CalibrationRecord make_calibration_record(const CalibrationResult& r, const Patient& p,
+                                          const forward::ClosureOptions& sim,
+                                          const CalibrationOptions& o) {
+  CalibrationRecord c;
+  c.patient_id = p.id;
+  c.synthetic = p.synthetic;
+  c.provenance.seed = p.provenance.seed;
+  c.options = forward::describe_options(sim);
+  c.options.emplace_back("fit_method", o.method);
+  c.options.emplace_back("fit_jobs", std::to_string(o.jobs));
+  c.options.emplace_back("fit_max_simulations", std::to_string(o.max_simulations));
+  c.options.emplace_back("fit_step_tolerance", std::to_string(o.step_tolerance));
+  c.options.emplace_back("fit_error_tolerance", std::to_string(o.error_tolerance));
+  c.options.emplace_back("fit_huber_mm", std::to_string(o.huber_mm));
+  c.options.emplace_back("fit_fd_step", std::to_string(o.fd_step));
+  c.method = r.method;
+  c.termination = r.termination;
+  const auto n = static_cast<Eigen::Index>(r.specs.size());
+  c.lower.resize(n);
+  c.upper.resize(n);
+  c.truth = Eigen::VectorXd::Constant(n, kNaN);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const ParameterSpec& s = r.specs[i];
+    c.names.push_back(s.name);
+    c.units.push_back(s.unit);
+    c.lower[i] = s.lower;
+    c.upper[i] = s.upper;
+    c.identified.push_back(r.identified[i] ? 1 : 0);
+    if (p.truth) {
+      ValveParameters t = p.truth->parameters;
+      t.for_each([&](const std::string& name, double v, const char*) {
+        if (name == s.name) c.truth[i] = v / s.to_internal;
+      });
+    }
+  }
+  c.start = r.start;
+  c.fitted = r.fitted;
+  c.sd = r.sd;
+  c.covariance = r.covariance;
+  c.correlation = r.correlation;
+  c.noise_mm = r.noise_mm;
+  c.parameters = r.parameters;
+  c.error_before_mm = r.error_before_mm;
+  c.error_after_mm = r.error_after_mm;
+  c.simulations = r.simulations;
+  c.failed_simulations = r.failed_simulations;
+  c.cache_hits = r.cache_hits;
+  c.wall_s = r.wall_s;
+  c.history_x.resize(static_cast<Eigen::Index>(r.history.size()), n);
+  for (size_t h = 0; h < r.history.size(); ++h) {
+    c.history_simulation.push_back(r.history[h].simulation);
+    c.history_error_mm.push_back(r.history[h].error_mm);
+    c.history_best_mm.push_back(r.history[h].best_mm);
+    c.history_x.row(static_cast<Eigen::Index>(h)) = r.history[h].x.transpose();
+  }
+  return c;
+}
+
+}  // namespace mvtwin::inverse

@@ -1,0 +1,204 @@
+// mvtwin calibrate: fits chordae rest lengths, stiffnesses and pressure to a patient's observed
+// closed valve (inverse/calibration.h).
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/calibration_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/model_vtk.h"
+#include "mvtwin/inverse/calibration.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string num(double v, int prec = 3) {
+  if (std::isnan(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+json nan_to_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+}  // namespace
+
+json calibration_json(const CalibrationRecord& c) {
+  json par = json::array();
+  for (size_t i = 0; i < c.names.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    par.push_back({{"name", c.names[i]},
+                   {"unit", c.units[i]},
+                   {"start", c.start[k]},
+                   {"fitted", c.fitted[k]},
+                   {"sd", nan_to_null(c.sd[k])},
+                   {"truth", nan_to_null(c.truth[k])},
+                   {"error", nan_to_null(c.fitted[k] - c.truth[k])},
+                   {"identified", c.identified[i] != 0},
+                   {"bounds", {c.lower[k], c.upper[k]}}});
+  }
+  json corr = json::array();
+  for (Eigen::Index i = 0; i < c.correlation.rows(); ++i) {
+    json row = json::array();
+    for (Eigen::Index j = 0; j < c.correlation.cols(); ++j) row.push_back(nan_to_null(c.correlation(i, j)));
+    corr.push_back(row);
+  }
+  json history = json::array();
+  for (size_t h = 0; h < c.history_simulation.size(); ++h)
+    history.push_back({c.history_simulation[h], nan_to_null(c.history_error_mm[h]), c.history_best_mm[h]});
+  json opts = json::object();
+  for (const auto& [k, v] : c.options) opts[k] = v;
+  return {{"patient_id", c.patient_id},
+          {"synthetic", c.synthetic},
+          {"method", c.method},
+          {"termination", c.termination},
+          {"parameters", par},
+          {"correlation", corr},
+          {"noise_mm", c.noise_mm},
+          {"error_before_mm", c.error_before_mm},
+          {"error_after_mm", c.error_after_mm},
+          {"sims", c.simulations},
+          {"failed_sims", c.failed_simulations},
+          {"cache_hits", c.cache_hits},
+          {"wall_s", c.wall_s},
+          {"history_columns", {"simulation", "error_mm", "best_mm"}},
+          {"history", history},
+          {"options", opts},
+          {"provenance",
+           {{"mvtwin_version", c.provenance.version},
+            {"command", c.provenance.command},
+            {"created_utc", c.provenance.created_utc},
+            {"seed", c.provenance.seed}}}};
+}
+
+void print_calibration(const CalibrationRecord& c, std::ostream& os) {
+  os << "calibration of " << c.patient_id << (c.synthetic ? " [SYNTHETIC]" : "") << " by "
+     << c.method << ": " << c.termination << "\n";
+  os << "  error " << num(c.error_before_mm) << " -> " << num(c.error_after_mm) << " mm; "
+     << c.simulations << " simulations (" << c.failed_simulations << " failed, " << c.cache_hits
+     << " from the cache), " << num(c.wall_s, 1) << " s\n";
+  os << "  parameter                                   start     fitted   +- sd      "
+     << (c.synthetic ? "truth" : "") << "\n";
+  for (size_t i = 0; i < c.names.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    char line[256];
+    std::snprintf(line, sizeof line, "  %-40s %8s  %8s  %8s  %8s %s%s\n",
+                  (c.names[i] + (c.units[i] == "1" ? "" : " [" + c.units[i] + "]")).c_str(),
+                  num(c.start[k]).c_str(), num(c.fitted[k]).c_str(), num(c.sd[k]).c_str(),
+                  c.synthetic ? num(c.truth[k]).c_str() : "",
+                  c.identified[i] ? "" : "  (not identified by the data)", "");
+    os << line;
+  }
+  // The strongest trade-offs.
+  for (Eigen::Index i = 0; i < c.correlation.rows(); ++i)
+    for (Eigen::Index j = i + 1; j < c.correlation.cols(); ++j)
+      if (std::abs(c.correlation(i, j)) > 0.8)
+        os << "  trade-off: " << c.names[static_cast<size_t>(i)] << " ~ "
+           << c.names[static_cast<size_t>(j)] << " (correlation " << num(c.correlation(i, j), 2)
+           << ")\n";
+}
+
+void register_calibrate(CLI::App& app, Context& ctx) {
+  auto* cmd = app.add_subcommand("calibrate", "Fit chordae, stiffness and pressure to a patient");
+  cmd->footer(
+      "Example:\n  mvtwin calibrate patient.h5 --fit restlength,stiffness,pressure --method "
+      "bobyqa --jobs 2 --out calib.h5\n"
+      "Fits the chosen parameters (groups restlength, stiffness, pressure, modulus, or names)\n"
+      "so that the simulated closed valve matches the observed one (symmetric point-to-mesh\n"
+      "distance); the others stay at their defaults. Writes the calibration (HDF5), a JSON\n"
+      "summary beside it, and with --vtk the valve simulated before and after.");
+  auto file = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto vtk = std::make_shared<std::string>();
+  auto fit = std::make_shared<std::string>("restlength,stiffness,pressure");
+  auto force = std::make_shared<bool>(false);
+  auto all_frames = std::make_shared<bool>(false);
+  auto co = std::make_shared<inverse::CalibrationOptions>();
+  auto sets = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("FILE", *file, "patient file with an observed closed valve")->required();
+  cmd->add_option("--out", *out, "calibration file (HDF5); a .json summary is written beside it")
+      ->required();
+  cmd->add_flag("--force", *force, "replace an existing calibration file");
+  cmd->add_option("--fit", *fit, "what to fit")->default_val("restlength,stiffness,pressure");
+  cmd->add_option("--method", co->method, "bobyqa | cobyla | neldermead | sbplx | ceres")
+      ->default_val("bobyqa");
+  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
+  cmd->add_option("--max-sims", co->max_simulations, "simulation budget")->default_val(80)
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--noise-mm", co->noise_mm,
+                  "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
+  cmd->add_flag("--all-frames", *all_frames,
+                "compare every observed closing frame, not only the first closed one");
+  cmd->add_option("--vtk", *vtk, "directory for the valve before and after (ParaView)");
+  cmd->add_option("--set", *sets,
+                  "name=value for the calibration model (repeatable), e.g. --set ures=20");
+  cmd->callback([=, &ctx] {
+    ctx.run = [=, &ctx] {
+      const Patient p = read_patient(*file, false);
+      refuse_overwrite_path(*out, *force);
+      forward::ClosureOptions o;
+      ValveParameters start;  // the defaults: never the virtual patient's hidden values
+      for (const std::string& a : *sets) forward::apply_setting(a, &o, &start);
+      inverse::ObjectiveOptions oo;
+      oo.simulation = o;
+      oo.all_closing_frames = *all_frames;
+      inverse::ClosureObjective objective(p, inverse::ParameterSpace(*fit, start), oo);
+      std::cout << "calibrating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
+                << objective.space().names() << "\n  by " << co->method << ", " << co->jobs
+                << " simulations at once, model " << o.model.ures << " x " << o.model.vres
+                << ", dt " << o.dt << " s; " << objective.num_residuals()
+                << " distances over " << objective.frames().size() << " frame(s)" << std::endl;
+      inverse::CalibrationOptions opt = *co;
+      const bool tty = isatty(fileno(stderr)) != 0;
+      opt.progress = [tty](int it, double best, int sims) {
+        std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s", tty ? "\r" : "",
+                     it, best, sims, tty ? "   " : "\n");
+        std::fflush(stderr);
+      };
+      const inverse::CalibrationResult r = inverse::calibrate(objective, opt);
+      if (tty) std::fprintf(stderr, "\n");
+      CalibrationRecord rec = inverse::make_calibration_record(r, p, o, opt);
+      rec.patient_file = *file;
+      rec.provenance.version = kVersion;
+      rec.provenance.command = ctx.command_line;
+      rec.provenance.created_utc = utc_now_iso8601();
+      write_calibration_file(*out, rec);
+      const fs::path js = fs::path(*out).replace_extension(".json");
+      write_atomically(js, [&](const fs::path& tmp) {
+        std::ofstream f(tmp);
+        f << calibration_json(rec).dump(2) << "\n";
+        if (!f) throw Error(js.string() + ": cannot write");
+      });
+      print_calibration(rec, std::cout);
+      std::cout << "wrote " << *out << " and " << js.string() << "\n";
+      if (!vtk->empty()) {
+        for (const auto& [name, x] : {std::pair{"before", r.start}, std::pair{"after", r.fitted}}) {
+          const forward::ClosureResult s = objective.simulate(x);
+          const auto files = forward::export_closure_vtk(s, fs::path(*vtk) / name);
+          std::cout << "wrote " << files.size() << " files to " << (fs::path(*vtk) / name).string()
+                    << "\n";
+        }
+      }
+      return 0;
+    };
+  });
+}
+
+}  // namespace mvtwin::tools
