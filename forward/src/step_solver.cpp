@@ -5,6 +5,8 @@
 
 #include <chrono>
 
+#include <dlfcn.h>
+#include <mutex>
 #include <omp.h>
 
 #include <Eigen/CholmodSupport>
@@ -47,7 +49,21 @@ double seconds_since(Clock::time_point t0) {
 /// CHOLMOD (SuiteSparse 5) runs parallel loops with a compiled-in 4 OpenMP threads; on this
 /// machine's 2 cores, and beside parallel candidate simulations, they only contend. A
 /// max-active-levels of 0 makes every parallel region of this thread run serially.
-void serial_openmp() { omp_set_max_active_levels(0); }
+///
+/// The BLAS under CHOLMOD is called from several threads at once when candidate simulations run
+/// in parallel. OpenBLAS's serial build is not safe for that (its buffers are shared without
+/// locks: concurrent closures gave different numbers); its threaded build is, and is told here
+/// to use one thread per call, so that a simulation stays on one core.
+void serial_openmp() {
+  omp_set_max_active_levels(0);
+  static const bool blas_single_threaded = [] {
+    using SetThreads = void (*)(int);
+    if (auto* f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
+      f(1);
+    return true;
+  }();
+  (void)blas_single_threaded;
+}
 
 /// A direct factorization whose symbolic analysis is redone only when the pattern changes.
 class Factor {
@@ -170,6 +186,12 @@ class FactorOf : public Factor {
       s_.cholmod().method[1].ordering = CHOLMOD_METIS;
       s_.cholmod().method[2].ordering = CHOLMOD_NESDIS;
     }
+    // METIS (behind CHOLMOD's METIS and NESDIS orderings) draws from a random generator
+    // whose state is shared by the whole process: two simulations ordering at once in
+    // different threads got different orderings, and so different round-off. One analysis at
+    // a time keeps every simulation's numbers independent of what runs beside it.
+    static std::mutex analysis_mutex;
+    std::lock_guard<std::mutex> lock(analysis_mutex);
     s_.analyzePattern(A);
   }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {

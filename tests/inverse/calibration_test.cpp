@@ -1,0 +1,153 @@
+#include "mvtwin/inverse/calibration.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/virtual_closure.h"
+
+namespace mvtwin::inverse {
+namespace {
+
+/// A virtual patient observed by a finer model than the (small, fast) calibration model.
+const Patient& observed_patient() {
+  static const Patient p = [] {
+    Patient q = make_virtual_patient(3);
+    forward::VirtualClosureOptions vo;
+    vo.simulation = forward::ClosureOptions{};
+    vo.simulation.model.ures = 24;
+    vo.simulation.model.vres = 12;
+    vo.simulation.model.layers = 2;
+    vo.simulation.dt = 0.005;
+    vo.noise_mm = 0.2;
+    forward::simulate_observed_closure(&q, vo);
+    return q;
+  }();
+  return p;
+}
+
+ObjectiveOptions small_model() {
+  ObjectiveOptions o;
+  o.simulation.model.ures = 16;
+  o.simulation.model.vres = 8;
+  return o;
+}
+
+TEST(ClosureObjective, NeedsAnObservedClosedSurface) {
+  const Patient p = make_virtual_patient(3);  // closed frames not simulated
+  EXPECT_THROW(ClosureObjective(p, ParameterSpace("restlength", ValveParameters{}), small_model()),
+               Error);
+}
+
+TEST(Calibration, RestLengthsImproveTheFitSurviveFailuresAndRepeat) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
+#endif
+  const Patient& p = observed_patient();
+  ObjectiveOptions oo = small_model();
+  // A region of the parameter space where every candidate "fails": the fit must go on.
+  oo.force_failure = [](const ValveParameters& v) { return v.restlength_factor[0] < 0.97; };
+  CalibrationOptions co;
+  co.max_simulations = 16;
+  co.jobs = 2;
+  auto run = [&] {
+    ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), oo);
+    return calibrate(obj, co);
+  };
+  const CalibrationResult a = run();
+  EXPECT_GT(a.failed_simulations, 0) << "the forced failures were met (x0 - step)";
+  EXPECT_LT(a.error_after_mm, a.error_before_mm);
+  EXPECT_GT(a.simulations, 8);
+  EXPECT_GT(a.cache_hits, 0) << "BOBYQA's start design comes from the parallel pre-evaluation";
+  ASSERT_EQ(a.fitted.size(), 4);
+  EXPECT_TRUE(a.fitted.allFinite());
+  for (int i = 0; i < 4; ++i) EXPECT_GE(a.fitted[i], 0.97) << "no failed candidate is kept";
+  // Same input, same result, whatever the thread timing.
+  const CalibrationResult b = run();
+  EXPECT_EQ(a.fitted, b.fitted);
+  EXPECT_EQ(a.error_after_mm, b.error_after_mm);
+  EXPECT_EQ(a.simulations, b.simulations);
+}
+
+TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
+#endif
+  // The optimizer's own check: observation made by the calibration model itself, without
+  // noise (deliberately the inverse crime that calibrations must avoid), so the hidden values
+  // are the exact minimum.
+  Patient p = make_virtual_patient(3);
+  forward::VirtualClosureOptions vo;
+  vo.simulation = small_model().simulation;
+  vo.noise_mm = 0.0;
+  forward::simulate_observed_closure(&p, vo);
+  const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) +
+                               ",restlength_factor_" + std::string(kChordaeGroupNames[2]);
+  ClosureObjective obj(p, ParameterSpace(marginal, ValveParameters{}), small_model());
+  CalibrationOptions co;
+  co.max_simulations = 30;
+  co.step_tolerance = 0.02;
+  const CalibrationResult r = calibrate(obj, co);
+  const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
+  // The truth is not at zero error (the observation is resampled onto the patient's grid and
+  // back): the fit must reach the truth's error, within 0.02 mm.
+  const Evaluation at_truth = obj.evaluate(truth);
+  ASSERT_TRUE(at_truth.ok);
+  EXPECT_LT(at_truth.mean_mm, r.error_before_mm);
+  EXPECT_LE(r.error_after_mm, at_truth.mean_mm + 0.02);
+  for (int i = 0; i < 2; ++i)
+    EXPECT_NEAR(r.fitted[i], truth[i], 0.03) << obj.space().specs()[i].name << ", started at "
+                                             << r.start[i];
+}
+
+TEST(ClosureObjective, ConcurrentCandidatesEqualSequentialOnes) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "closures take too long under AddressSanitizer";
+#endif
+  const Patient& p = observed_patient();
+  const ParameterSpace space("restlength", ValveParameters{});
+  Eigen::VectorXd x = space.start(), y = space.start();
+  x[0] = 1.05;
+  y[1] = 1.1;
+  ClosureObjective sequential(p, space, small_model()), parallel(p, space, small_model());
+  const Evaluation ex = sequential.evaluate(x), ey = sequential.evaluate(y);
+  const std::vector<Evaluation> both = parallel.evaluate_many({x, y}, 2);
+  ASSERT_TRUE(ex.ok && ey.ok && both[0].ok && both[1].ok);
+  EXPECT_EQ((both[0].residuals - ex.residuals).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((both[1].residuals - ey.residuals).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(parallel.simulations(), 2);
+  ClosureObjective again(p, space, small_model());
+  EXPECT_EQ((again.evaluate(x).residuals - ex.residuals).cwiseAbs().maxCoeff(), 0.0)
+      << "a fresh objective repeats the same numbers";
+  EXPECT_TRUE(parallel.evaluate(x).cached);
+}
+
+TEST(Calibration, CeresFitsToo) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
+#endif
+  const Patient& p = observed_patient();
+  ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
+  CalibrationOptions co;
+  co.method = "ceres";
+  co.max_simulations = 15;
+  const CalibrationResult r = calibrate(obj, co);
+  EXPECT_LT(r.error_after_mm, r.error_before_mm);
+  EXPECT_NE(r.termination.find("ceres"), std::string::npos);
+}
+
+TEST(Calibration, UnknownMethodIsNamed) {
+  Patient p = make_virtual_patient(3);  // the open valve as a stand-in observation: no closure
+  p.sequence.frames[p.sequence.first_closed].la_surface =
+      p.sequence.frames[p.sequence.end_diastole].la_surface;
+  ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
+  CalibrationOptions co;
+  co.method = "newuoa-typo";
+  EXPECT_THROW(calibrate(obj, co), Error);
+  EXPECT_EQ(obj.simulations(), 0);
+}
+
+}  // namespace
+}  // namespace mvtwin::inverse
