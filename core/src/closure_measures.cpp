@@ -1,4 +1,5 @@
 #include "mvtwin/core/closure_measures.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
 
 #include <algorithm>
 #include <cmath>
@@ -115,9 +116,58 @@ ClosureMeasures measure_closure(
     if (count * pixel >= min_component_mm2) {
       m.orifice_area_mm2 += count * pixel;
       ++m.orifice_components;
+      m.component_areas_mm2.push_back(count * pixel);
     }
   }
+  std::sort(m.component_areas_mm2.rbegin(), m.component_areas_mm2.rend());
   return m;
+}
+
+Coaptation measure_coaptation(const LeafletGrid& g, double contact_mm) {
+  if (!(contact_mm > 0)) throw Error("coaptation: contact distance must be positive");
+  if (!g.points().allFinite()) throw Error("coaptation: non-finite surface coordinates");
+  const TriangleMesh all = g.triangulate();
+  const Eigen::VectorXi tags = g.triangle_tags();
+  TriangleMesh posterior;
+  posterior.V = all.V;
+  int n = 0;
+  for (Eigen::Index k = 0; k < tags.size(); ++k) n += tags[k] == static_cast<int>(LeafletTag::kPosterior);
+  posterior.F.resize(n, 3);
+  n = 0;
+  for (Eigen::Index k = 0; k < tags.size(); ++k)
+    if (tags[k] == static_cast<int>(LeafletTag::kPosterior)) posterior.F.row(n++) = all.F.row(k);
+  const int U = g.ures(), V = g.vres(), half = U / 2;
+  const int u0 = static_cast<int>(std::ceil(0.15 * half)), u1 = static_cast<int>(std::floor(0.85 * half));
+  std::vector<double> lengths;
+  Coaptation c;
+  int looked = 0;
+  for (int u = u0; u <= u1; ++u) {
+    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> col(V, 3);
+    for (int v = 0; v < V; ++v) col.row(v) = g.at(u, v).transpose();
+    const std::vector<double> d = point_to_mesh_distances(col, posterior);
+    double len = 0;
+    for (int v = 0; v + 1 < V; ++v) {
+      const double seg = (col.row(v + 1) - col.row(v)).norm();
+      const bool a = d[v] <= contact_mm, b = d[v + 1] <= contact_mm;
+      if (a && b) {
+        len += seg;
+      } else if (a != b) {
+        // The part of the segment within reach, by linear interpolation of the distance.
+        const double da = d[v] - contact_mm, db = d[v + 1] - contact_mm;
+        const double f = da / (da - db);  // where the distance crosses contact_mm
+        len += seg * (a ? f : 1.0 - f);
+      }
+    }
+    ++looked;
+    if (len > 0) lengths.push_back(len);
+  }
+  c.coapting_fraction = looked > 0 ? static_cast<double>(lengths.size()) / looked : 0.0;
+  if (!lengths.empty()) {
+    std::sort(lengths.begin(), lengths.end());
+    c.length_mm = lengths[lengths.size() / 2];
+    c.max_mm = lengths.back();
+  }
+  return c;
 }
 
 ClosureMeasures measure_closure(const ValveFrame& frame, double resolution_mm) {

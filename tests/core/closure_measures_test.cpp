@@ -71,6 +71,20 @@ TEST(ClosureMeasures, KnownGapAndTwoOrifices) {
       }));
   EXPECT_EQ(clipped.orifice_components, 2);
   EXPECT_NEAR(clipped.orifice_area_mm2, strip - 8.0, 0.06 * strip);
+  // The double orifice: each opening's area, largest first, summing to the orifice.
+  ASSERT_EQ(clipped.component_areas_mm2.size(), 2u);
+  EXPECT_NEAR(clipped.component_areas_mm2[0] + clipped.component_areas_mm2[1],
+              clipped.orifice_area_mm2, 1e-9);
+  EXPECT_NEAR(clipped.component_areas_mm2[1], 0.5 * (strip - 8.0), 0.06 * strip);
+  // A clip off the middle (x in (2, 6)) leaves a large and a small opening.
+  const ClosureMeasures off = measure_closure(
+      circle(10, 256), square(-2.0, [](double x, double y) {
+        return std::abs(y) > 1.0 || (x > 2.0 && x < 6.0);
+      }));
+  ASSERT_EQ(off.component_areas_mm2.size(), 2u);
+  EXPECT_GT(off.component_areas_mm2[0], 2.0 * off.component_areas_mm2[1]);
+  const double small = 2.0 * 10.0 * std::sqrt(1.0 - 0.01) - 2.0 * 6.0;  // x in (6, ~9.95), |y| < 1
+  EXPECT_NEAR(off.component_areas_mm2[1], small, 0.15 * small);
 }
 
 TEST(ClosureMeasures, InvariantUnderRigidMotion) {
@@ -95,6 +109,43 @@ TEST(ClosureMeasures, BadInput) {
   Curve bad = circle(10, 64);
   bad(3, 1) = NAN;
   EXPECT_THROW(measure_closure(bad, l), Error);
+}
+
+/// A closed valve drawn by hand: each column runs flat (z = 0) from an annulus circle of radius
+/// 15 mm to the closure line y = +-gap/2, then straight down for `depth` mm; the anterior half
+/// (y > 0) and the posterior half (y < 0) face each other gap mm apart along the drop.
+LeafletGrid hand_closed_valve(double gap, double depth) {
+  const int U = 32, V = 13, K = 6;
+  LeafletGrid::Points P(U * V, 3);
+  for (int u = 0; u < U; ++u) {
+    const double th = std::numbers::pi * u / (U / 2), x = 15.0 * std::cos(th), y0 = 15.0 * std::sin(th);
+    const double side = u < U / 2 ? 1.0 : -1.0;
+    for (int v = 0; v < V; ++v) {
+      Eigen::Vector3d q;
+      if (v <= K) {
+        q = {x, y0 + (side * 0.5 * gap - y0) * v / K, 0.0};
+      } else {
+        q = {x, side * 0.5 * gap, -depth * (v - K) / (V - 1 - K)};
+      }
+      P.row(v * U + u) = q.transpose();
+    }
+  }
+  return LeafletGrid(U, V, P);
+}
+
+TEST(Coaptation, LengthOfTheApposedZone) {
+  // The drop (6 mm) plus the flat part within 1 mm of the other leaflet (0.3 mm apart at the
+  // closure line: the last 0.7 mm).
+  const Coaptation c = measure_coaptation(hand_closed_valve(0.3, 6.0), 1.0);
+  EXPECT_NEAR(c.length_mm, 6.7, 0.1);
+  EXPECT_NEAR(c.max_mm, 6.7, 0.1);
+  EXPECT_DOUBLE_EQ(c.coapting_fraction, 1.0);
+  EXPECT_NEAR(measure_coaptation(hand_closed_valve(0.3, 3.0), 1.0).length_mm, 3.7, 0.1);
+  // Leaflets 2 mm apart do not coapt.
+  const Coaptation open = measure_coaptation(hand_closed_valve(2.0, 6.0), 1.0);
+  EXPECT_EQ(open.length_mm, 0.0);
+  EXPECT_EQ(open.coapting_fraction, 0.0);
+  EXPECT_THROW(measure_coaptation(hand_closed_valve(0.3, 6.0), 0.0), Error);
 }
 
 }  // namespace
