@@ -1,0 +1,227 @@
+// mvtwin clip: predicts the closure after an edge-to-edge clip (inverse/clip_prediction.h).
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "progress.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/calibration_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/simulation_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/model_vtk.h"
+#include "mvtwin/inverse/clip_prediction.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string f1(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f", v);
+  return b;
+}
+
+std::string describe(const std::vector<inverse::ClipSite>& sites) {
+  std::string s;
+  for (const auto& c : sites) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%s%.2f,%.2f", s.empty() ? "" : ";", c.position, c.depth);
+    s += b;
+  }
+  return s.empty() ? "none" : s;
+}
+
+json quality_json(const inverse::ClosureQuality& q) {
+  return {{"converged", q.converged},
+          {"reason", q.reason},
+          {"orifice_area_mm2", q.orifice_area_mm2},
+          {"annulus_area_mm2", q.annulus_area_mm2},
+          {"orifice_components", q.orifice_components},
+          {"component_areas_mm2", q.component_areas_mm2},
+          {"coaptation_length_mm", q.coaptation.length_mm},
+          {"coaptation_max_mm", q.coaptation.max_mm},
+          {"coapting_fraction", q.coaptation.coapting_fraction},
+          {"clip_gap_end_mm", q.clip_gap_mm}};
+}
+
+std::string quality_line(const inverse::ClosureQuality& q) {
+  if (!q.converged) return "simulation failed: " + q.reason;
+  std::string s = "orifice " + f1(q.orifice_area_mm2) + " mm^2 (" +
+                  std::to_string(q.orifice_components) + " opening" +
+                  (q.orifice_components == 1 ? "" : "s");
+  if (q.component_areas_mm2.size() > 1) {
+    s += ":";
+    for (double a : q.component_areas_mm2) s += " " + f1(a);
+  }
+  s += "), coaptation " + f1(q.coaptation.length_mm) + " mm over " +
+       std::to_string(static_cast<int>(std::lround(100 * q.coaptation.coapting_fraction))) +
+       " % of the line";
+  return s;
+}
+
+/// The simulation options a calibration used (its options record), else the defaults.
+forward::ClosureOptions options_of(const CalibrationRecord& c) {
+  forward::ClosureOptions o;
+  ValveParameters unused;
+  for (const auto& [k, v] : c.options) {
+    if (k.rfind("fit_", 0) == 0 || k == "clips" || k == "ruptured_marginal_chordae" ||
+        k == "record_every")
+      continue;
+    forward::apply_setting(k + "=" + v, &o, &unused);
+  }
+  return o;
+}
+
+}  // namespace
+
+void register_clip(CLI::App& app, Context& ctx) {
+  auto* cmd = app.add_subcommand("clip", "Predict the closure after an edge-to-edge clip");
+  cmd->footer(
+      "Examples:\n  mvtwin clip patient.h5 --params calib.h5 --at 0.5,1 --out clipped.h5\n"
+      "  mvtwin clip patient.h5 --params calib.h5 --at \"0.35,1;0.65,1\" --out two_clips.h5\n"
+      "  mvtwin clip patient.h5 --params calib.h5 --suggest --pairs --jobs 2\n"
+      "A site is position,depth: position along the coaptation line (0 = anterolateral\n"
+      "commissure, 1 = posteromedial), depth 1 = the free edges. The open valve is clipped with\n"
+      "the pressure off and the boundary held, then closes under the patient's motion and\n"
+      "pressure with the calibrated parameters (--params; the defaults without it). Reports\n"
+      "the regurgitant orifice, its openings and the coaptation length before and after.");
+  auto file = std::make_shared<std::string>();
+  auto params = std::make_shared<std::string>();
+  auto at = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto vtk = std::make_shared<std::string>();
+  auto suggest = std::make_shared<bool>(false);
+  auto pairs = std::make_shared<bool>(false);
+  auto force = std::make_shared<bool>(false);
+  auto jobs = std::make_shared<int>(2);
+  auto sets = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("FILE", *file, "patient file (the pre-operative anatomy)")->required();
+  cmd->add_option("--params", *params, "calibration file (mvtwin calibrate)");
+  cmd->add_option("--at", *at, "clip site(s): position,depth[;position,depth]");
+  cmd->add_option("--out", *out, "result of the clipped closure (simulation file; a .json "
+                                 "summary is written beside it)");
+  cmd->add_option("--vtk", *vtk, "directory for the clipped closure (ParaView)");
+  cmd->add_flag("--suggest", *suggest, "search sites along the coaptation line and rank them");
+  cmd->add_flag("--pairs", *pairs, "with --suggest: also pairs of clips");
+  cmd->add_option("--jobs", *jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
+  cmd->add_flag("--force", *force, "replace existing output files");
+  cmd->add_option("--set", *sets, "name=value for the simulation (repeatable)");
+  cmd->callback([=, &ctx] {
+    ctx.run = [=, &ctx] {
+      if (at->empty() == !*suggest)
+        throw Error("clip: give either --at SITES or --suggest");
+      const Patient p = read_patient(*file, false);
+      ValveParameters par;
+      forward::ClosureOptions o;
+      std::string source = "default parameters (uncalibrated)";
+      if (!params->empty()) {
+        const CalibrationRecord c = read_calibration_file(*params);
+        if (c.patient_id != p.id) {
+          throw Error(*params + " calibrates '" + c.patient_id + "', not '" + p.id + "'");
+        }
+        par = c.parameters;
+        o = options_of(c);
+        source = "calibrated parameters from " + *params;
+      }
+      for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
+      if (!out->empty()) {
+        refuse_overwrite_path(*out, *force);
+        refuse_overwrite_path(fs::path(*out).replace_extension(".json"), *force);
+      }
+      std::cout << "clip prediction for " << p.id << (p.synthetic ? " [SYNTHETIC]" : "")
+                << " with " << source << std::endl;
+      std::vector<std::vector<inverse::ClipSite>> cands{{}};  // first: no clip
+      if (*suggest) {
+        for (auto& c : inverse::clip_candidates(*pairs)) cands.push_back(c);
+      } else {
+        cands.push_back(inverse::parse_clip_sites(*at));
+      }
+      std::cout << "  simulating " << cands.size() << " closures (" << *jobs << " at once) ..."
+                << std::endl;
+      std::vector<inverse::ClipScenario> res = inverse::simulate_clips(p, par, o, cands, *jobs);
+      const inverse::ClipScenario before = res.front();
+      std::cout << "before: " << quality_line(before.quality) << "\n";
+      json j{{"patient_id", p.id},
+             {"synthetic", p.synthetic},
+             {"parameters_from", source},
+             {"options", forward::describe_options(o)},
+             {"before", quality_json(before.quality)},
+             {"provenance",
+              {{"mvtwin_version", kVersion}, {"command", ctx.command_line},
+               {"created_utc", utc_now_iso8601()}, {"seed", p.provenance.seed}}}};
+      std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
+      if (*suggest) {
+        inverse::rank_by_residual_orifice(&clipped);
+        std::cout << "candidates ranked by residual orifice:\n";
+        json ranked = json::array();
+        int rank = 0;
+        for (const auto& s : clipped) {
+          std::cout << "  " << ++rank << ". clip at " << describe(s.sites) << ": "
+                    << quality_line(s.quality) << "\n";
+          ranked.push_back({{"sites", describe(s.sites)}, {"after", quality_json(s.quality)}});
+        }
+        j["ranked"] = ranked;
+      } else {
+        const auto& s = clipped.front();
+        std::cout << "after clip at " << describe(s.sites) << ": " << quality_line(s.quality)
+                  << "\n";
+        for (size_t c = 0; c < s.quality.clip_gap_mm.size(); ++c)
+          std::cout << "  clip " << c + 1 << ": atrial surfaces " << f1(s.quality.clip_gap_mm[c])
+                    << " mm apart at the end\n";
+        j["sites"] = describe(s.sites);
+        j["after"] = quality_json(s.quality);
+      }
+      // The chosen (or best) scenario as a full simulation file and VTK.
+      if (!out->empty() || !vtk->empty()) {
+        const auto& best = clipped.front();
+        forward::ClosureOptions oc = o;
+        for (const auto& s : best.sites) oc.clips.push_back(inverse::clip_options(s));
+        if (p.truth) oc.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
+        oc.record_every = std::max(1, static_cast<int>(0.1 / oc.dt));
+        oc.progress = progress_line("  clipped closure");
+        const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, oc);
+        if (!out->empty()) {
+          SimulationRecord rec = forward::make_simulation_record(r, oc, par);
+          rec.patient_id = p.id;
+          rec.patient_file = *file;
+          rec.synthetic = p.synthetic;
+          rec.provenance.version = kVersion;
+          rec.provenance.command = ctx.command_line;
+          rec.provenance.created_utc = utc_now_iso8601();
+          rec.provenance.seed = p.provenance.seed;
+          write_simulation_file(*out, rec);
+          const fs::path js = fs::path(*out).replace_extension(".json");
+          write_atomically(js, [&](const fs::path& tmp) {
+            std::ofstream f(tmp);
+            f << j.dump(2) << "\n";
+            if (!f) throw Error(js.string() + ": cannot write");
+          });
+          std::cout << "wrote " << *out << " and " << js.string() << "\n";
+        }
+        if (!vtk->empty()) {
+          const auto files = forward::export_closure_vtk(r, *vtk);
+          std::cout << "wrote " << files.size() << " files to " << *vtk << "\n";
+        }
+      }
+      for (const auto& s : clipped)
+        if (s.quality.converged) return 0;
+      return 4;
+    };
+  });
+}
+
+}  // namespace mvtwin::tools
