@@ -48,7 +48,8 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance", "export-model", "simulate"}) {
+  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance", "export-model", "simulate",
+                        "calibrate", "clip"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -103,6 +104,27 @@ TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {
   r = run("frobnicate");
   EXPECT_NE(r.code, 0);
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+}
+
+TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
+  ASSERT_EQ(run("phantom --seed 4 --out " + path("p.h5")).code, 0);
+  // No observed closed valve (closing frames not simulated): named, nothing written.
+  CmdResult r = run("calibrate " + path("p.h5") + " --out " + path("c.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--simulate-closure"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("c.h5")));
+  r = run("calibrate " + path("p.h5") + " --fit restlength,viscosity --out " + path("c.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("'viscosity'"), std::string::npos) << r.err;
+  r = run("clip " + path("p.h5") + " --at 1.5,1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("position 1.5"), std::string::npos) << r.err;
+  r = run("clip " + path("p.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--at"), std::string::npos) << r.err;
+  r = run("clip " + path("p.h5") + " --params " + path("p.h5") + " --at 0.5");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("not an mvtwin calibration file"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
