@@ -18,6 +18,8 @@ void register_commands(CLI::App& app, Context& ctx);
 void register_bench(CLI::App& app, Context& ctx);
 /// mvtwin calibrate (tools/calibrate.cpp).
 void register_calibrate(CLI::App& app, Context& ctx);
+/// mvtwin bench calibrate (tools/bench_calibrate.cpp), under the bench command.
+void register_bench_calibrate(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).
 void register_clip(CLI::App& app, Context& ctx);
 /// Throws mvtwin::Error when `path` exists and `force` is not set.

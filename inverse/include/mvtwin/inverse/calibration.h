@@ -46,7 +46,8 @@ struct CalibrationResult {
   /// noise SD; correlation matrix. NaN where J^T J is singular.
   Eigen::VectorXd sd;
   Eigen::MatrixXd covariance, correlation;
-  /// Whether the data determine each parameter: its sd below half its scale.
+  /// Whether the data determine each parameter: not along a null direction of J^T J and its
+  /// sd at most its scale.
   std::vector<bool> identified;
   double noise_mm = 0;
   double error_before_mm = 0, error_after_mm = 0;

@@ -1,0 +1,235 @@
+// mvtwin bench calibrate: automatic calibration over a virtual cohort of mixed pathology,
+// NLopt and Ceres side by side (figures, not tests).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/virtual_closure.h"
+#include "mvtwin/inverse/calibration.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+void save_json(const std::string& path, const json& j) {
+  if (path.empty()) return;
+  write_atomically(path, [&](const fs::path& tmp) {
+    std::ofstream f(tmp);
+    f << j.dump(1) << "\n";
+    if (!f) throw Error(path + ": cannot write");
+  });
+}
+
+json nan_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+}  // namespace
+
+void register_bench_calibrate(CLI::App& bench, Context& ctx) {
+  auto* cmd = bench.add_subcommand("calibrate", "Calibration over a virtual cohort");
+  cmd->footer(
+      "Example:\n  mvtwin bench calibrate --patients 10 --json calibrate.json --cache obs/\n"
+      "Patients are drawn with the pathologies in turn (normal, elongated chordae, ruptured\n"
+      "chordae, functional MR, stiff leaflets); their closing frames are simulated by the\n"
+      "observation model (--observe-set; cached in --cache) with detection-like noise; each is\n"
+      "then calibrated by every --methods from the defaults. Resumable from its JSON.");
+  auto json_path = std::make_shared<std::string>();
+  auto cache = std::make_shared<std::string>();
+  auto n = std::make_shared<int>(10);
+  auto seed = std::make_shared<unsigned>(2026);
+  auto fit = std::make_shared<std::string>("restlength,stiffness,pressure");
+  auto methods = std::make_shared<std::vector<std::string>>(std::vector<std::string>{"bobyqa", "ceres"});
+  auto sets = std::make_shared<std::vector<std::string>>();
+  auto observe = std::make_shared<std::vector<std::string>>();
+  auto noise = std::make_shared<double>(0.5);
+  auto co = std::make_shared<inverse::CalibrationOptions>();
+  cmd->add_option("--json", *json_path, "write the figures here (rewritten after each fit)");
+  cmd->add_option("--cache", *cache, "directory keeping the observed virtual patients");
+  cmd->add_option("--patients", *n, "number of virtual patients")->default_val(10)->check(CLI::Range(1, 10000));
+  cmd->add_option("--seed", *seed, "cohort seed")->default_val(2026);
+  cmd->add_option("--fit", *fit, "what to fit")->default_val("restlength,stiffness,pressure");
+  cmd->add_option("--methods", *methods, "optimizers to compare")->default_str("bobyqa ceres");
+  cmd->add_option("--set", *sets, "name=value for the calibration model");
+  cmd->add_option("--observe-set", *observe,
+                  "name=value for the observation model (default: the fine model of "
+                  "mvtwin phantom --simulate-closure)");
+  cmd->add_option("--noise", *noise, "observation noise SD, mm")->default_val(0.5);
+  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2);
+  cmd->add_option("--max-sims", co->max_simulations, "simulation budget per fit")->default_val(80);
+  cmd->callback([=, &ctx] {
+    ctx.run = [=, &ctx] {
+      forward::ClosureOptions model;
+      ValveParameters defaults;
+      for (const auto& a : *sets) forward::apply_setting(a, &model, &defaults);
+      forward::VirtualClosureOptions vo;
+      vo.noise_mm = *noise;
+      {
+        ValveParameters unused;
+        for (const auto& a : *observe) forward::apply_setting(a, &vo.simulation, &unused);
+      }
+      json runs = json::array();
+      if (!json_path->empty() && fs::exists(*json_path)) {
+        try {
+          std::ifstream f(*json_path);
+          const json old = json::parse(f);
+          if (old.value("seed", 0u) == *seed && old.value("fit", "") == *fit &&
+              old.value("settings", json::array()) == json(*sets) &&
+              old.value("observe_settings", json::array()) == json(*observe))
+            runs = old.value("runs", json::array());
+        } catch (const std::exception&) {
+        }
+        if (!runs.empty()) std::cout << "resuming: " << runs.size() << " fits from " << *json_path << "\n";
+      }
+      auto done = [&](std::uint64_t ps, const std::string& m) {
+        for (const auto& r : runs)
+          if (r.value("patient_seed", std::uint64_t{0}) == ps && r.value("method", "") == m) return true;
+        return false;
+      };
+      auto summary = [&] {
+        json by_method = json::object();
+        for (const std::string& m : *methods) {
+          double before = 0, after = 0, noise_sum = 0, wall = 0;
+          int k = 0, sims = 0, failed = 0, ok = 0;
+          for (const auto& r : runs) {
+            if (r.value("method", "") != m) continue;
+            ++k;
+            if (!r.value("ok", false)) continue;
+            ++ok;
+            before += r["error_before_mm"].get<double>();
+            after += r["error_after_mm"].get<double>();
+            noise_sum += r["noise_mm"].get<double>();
+            wall += r["wall_s"].get<double>();
+            sims += r["sims"].get<int>();
+            failed += r["failed_sims"].get<int>();
+          }
+          if (ok == 0) continue;
+          by_method[m] = {{"fits", k},
+                          {"succeeded", ok},
+                          {"error_before_mm", before / ok},
+                          {"error_after_mm", after / ok},
+                          {"noise_mm", noise_sum / ok},
+                          {"error_after_over_noise", after / noise_sum},
+                          {"wall_s_mean", wall / ok},
+                          {"sims_mean", static_cast<double>(sims) / ok},
+                          {"failed_sims", failed}};
+        }
+        return json{{"patients", *n},
+                    {"seed", *seed},
+                    {"fit", *fit},
+                    {"methods", *methods},
+                    {"settings", *sets},
+                    {"observe_settings", *observe},
+                    {"observation_model", forward::describe_options(vo.simulation)},
+                    {"calibration_model", forward::describe_options(model)},
+                    {"noise_mm", *noise},
+                    {"jobs", co->jobs},
+                    {"max_sims", co->max_simulations},
+                    {"synthetic", true},
+                    {"overall", by_method},
+                    {"runs", runs},
+                    {"provenance",
+                     {{"mvtwin_version", kVersion},
+                      {"command", ctx.command_line},
+                      {"created_utc", utc_now_iso8601()}}}};
+      };
+      if (!cache->empty()) fs::create_directories(*cache);
+      for (int i = 0; i < *n; ++i) {
+        VirtualPatientOptions po;
+        po.pathology = static_cast<Pathology>(i % kNumPathologies);
+        const std::uint64_t ps = static_cast<std::uint64_t>(*seed) * 1000 + static_cast<std::uint64_t>(i) + 1;
+        bool all_done = true;
+        for (const auto& m : *methods) all_done = all_done && done(ps, m);
+        if (all_done) continue;
+        Patient p;
+        const fs::path cached = cache->empty() ? fs::path() : fs::path(*cache) / ("observed_" + std::to_string(ps) + ".h5");
+        const auto t0 = std::chrono::steady_clock::now();
+        try {
+          if (!cached.empty() && fs::exists(cached)) {
+            p = read_patient(cached, false);
+          } else {
+            p = make_virtual_patient(ps, po);
+            std::cout << "patient " << i + 1 << "/" << *n << " (" << pathology_name(*po.pathology)
+                      << "): simulating its observed closure ..." << std::endl;
+            forward::simulate_observed_closure(&p, vo);
+            if (!cached.empty()) write_patient(cached, p);
+          }
+        } catch (const Error& e) {
+          std::cout << "patient " << ps << ": no observation (" << e.what() << "); skipped\n";
+          for (const auto& m : *methods)
+            runs.push_back({{"patient_seed", ps}, {"method", m}, {"ok", false}, {"reason", e.what()}});
+          save_json(*json_path, summary());
+          continue;
+        }
+        const double observe_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        for (const std::string& m : *methods) {
+          if (done(ps, m)) continue;
+          json row{{"patient_seed", ps},
+                   {"pathology", std::string(pathology_name(p.truth->pathology))},
+                   {"method", m},
+                   {"observe_s", observe_s}};
+          try {
+            inverse::ObjectiveOptions oo;
+            oo.simulation = model;
+            inverse::ClosureObjective obj(p, inverse::ParameterSpace(*fit, defaults), oo);
+            inverse::CalibrationOptions o = *co;
+            o.method = m;
+            const inverse::CalibrationResult r = inverse::calibrate(obj, o);
+            const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
+            json perr = json::object(), ident = json::object();
+            for (int k = 0; k < obj.space().size(); ++k) {
+              perr[obj.space().specs()[k].name] = r.fitted[k] - truth[k];
+              ident[obj.space().specs()[k].name] = static_cast<bool>(r.identified[k]);
+            }
+            row.update({{"ok", true},
+                        {"error_before_mm", r.error_before_mm},
+                        {"error_after_mm", r.error_after_mm},
+                        {"noise_mm", *noise},
+                        {"param_error", perr},
+                        {"identified", ident},
+                        {"sd", std::vector<double>(r.sd.data(), r.sd.data() + r.sd.size())},
+                        {"sims", r.simulations},
+                        {"failed_sims", r.failed_simulations},
+                        {"wall_s", r.wall_s},
+                        {"termination", r.termination}});
+            std::printf("patient %d/%d %-28s %-7s error %.3f -> %.3f mm (noise %.2f), %d sims (%d failed), %.1f s\n",
+                        i + 1, *n, std::string(pathology_name(p.truth->pathology)).c_str(), m.c_str(),
+                        r.error_before_mm, r.error_after_mm, *noise, r.simulations,
+                        r.failed_simulations, r.wall_s);
+            std::fflush(stdout);
+          } catch (const Error& e) {
+            row.update({{"ok", false}, {"reason", e.what()}});
+            std::cout << "patient " << ps << " " << m << ": " << e.what() << "\n";
+          }
+          for (auto& [k, v] : row.items())
+            if (v.is_number_float() && !std::isfinite(v.get<double>())) v = nan_null(v.get<double>());
+          runs.push_back(row);
+          save_json(*json_path, summary());
+        }
+      }
+      const json s = summary();
+      save_json(*json_path, s);
+      std::cout << "overall: " << s["overall"].dump() << "\n";
+      if (!json_path->empty()) std::cout << "wrote " << *json_path << "\n";
+      return 0;
+    };
+  });
+}
+
+}  // namespace mvtwin::tools
