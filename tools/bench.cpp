@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "output_files.h"
 #include "progress.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
@@ -36,11 +37,7 @@ using nlohmann::json;
 
 void write_json(const std::string& path, const json& j) {
   if (path.empty()) return;
-  write_atomically(path, [&](const std::filesystem::path& tmp) {
-    std::ofstream f(tmp);
-    f << j.dump(2) << "\n";
-    if (!f) throw Error(path + ": cannot write");
-  });
+  write_json_file(path, j);
   std::cout << "wrote " << path << "\n";
 }
 
@@ -336,11 +333,7 @@ int run_stability(const Context& ctx, const std::string& json_path, int runs, un
                 << " non-finite" << std::flush;
       if (++since_write >= 10 && !json_path.empty()) {
         since_write = 0;
-        write_atomically(json_path, [&](const std::filesystem::path& tmp) {
-          std::ofstream f(tmp);
-          f << s.dump(1) << "\n";
-          if (!f) throw Error(json_path + ": cannot write");
-        });
+        write_json_file(json_path, s, 1);
       }
     }
   };

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "output_files.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -29,14 +30,7 @@ using nlohmann::json;
 
 namespace {
 
-void save_json(const std::string& path, const json& j) {
-  if (path.empty()) return;
-  write_atomically(path, [&](const fs::path& tmp) {
-    std::ofstream f(tmp);
-    f << j.dump(1) << "\n";
-    if (!f) throw Error(path + ": cannot write");
-  });
-}
+void save_json(const std::string& path, const json& j) { write_json_file(path, j, 1); }
 
 json nan_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "output_files.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
@@ -181,11 +182,7 @@ void register_calibrate(CLI::App& app, Context& ctx) {
       rec.provenance.created_utc = utc_now_iso8601();
       write_calibration_file(*out, rec);
       const fs::path js = fs::path(*out).replace_extension(".json");
-      write_atomically(js, [&](const fs::path& tmp) {
-        std::ofstream f(tmp);
-        f << calibration_json(rec).dump(2) << "\n";
-        if (!f) throw Error(js.string() + ": cannot write");
-      });
+      write_json_file(js, calibration_json(rec));
       print_calibration(rec, std::cout);
       std::cout << "wrote " << *out << " and " << js.string() << "\n";
       if (!vtk->empty()) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "output_files.h"
 #include "progress.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
@@ -195,21 +196,9 @@ void register_clip(CLI::App& app, Context& ctx) {
         oc.progress = progress_line("  clipped closure");
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, oc);
         if (!out->empty()) {
-          SimulationRecord rec = forward::make_simulation_record(r, oc, par);
-          rec.patient_id = p.id;
-          rec.patient_file = *file;
-          rec.synthetic = p.synthetic;
-          rec.provenance.version = kVersion;
-          rec.provenance.command = ctx.command_line;
-          rec.provenance.created_utc = utc_now_iso8601();
-          rec.provenance.seed = p.provenance.seed;
-          write_simulation_file(*out, rec);
+          write_simulation_result(*out, r, oc, par, p, *file, ctx);
           const fs::path js = fs::path(*out).replace_extension(".json");
-          write_atomically(js, [&](const fs::path& tmp) {
-            std::ofstream f(tmp);
-            f << j.dump(2) << "\n";
-            if (!f) throw Error(js.string() + ": cannot write");
-          });
+          write_json_file(js, j);
           std::cout << "wrote " << *out << " and " << js.string() << "\n";
         }
         if (!vtk->empty()) {

@@ -1,4 +1,5 @@
 #include "commands.h"
+#include "output_files.h"
 #include "progress.h"
 
 #include <cmath>
@@ -500,15 +501,7 @@ void register_commands(CLI::App& app, Context& ctx) {
           std::cout << "\n";
         }
         if (!out->empty()) {
-          SimulationRecord rec = forward::make_simulation_record(r, o, par);
-          rec.patient_id = p.id;
-          rec.patient_file = *file;
-          rec.synthetic = p.synthetic;
-          rec.provenance.version = kVersion;
-          rec.provenance.command = ctx.command_line;
-          rec.provenance.created_utc = utc_now_iso8601();
-          rec.provenance.seed = p.provenance.seed;
-          write_simulation_file(*out, rec);
+          write_simulation_result(*out, r, o, par, p, *file, ctx);
           std::cout << "wrote " << *out << " (mvtwin info " << *out << ")\n";
         }
         if (!dir->empty()) {

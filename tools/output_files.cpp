@@ -1,0 +1,37 @@
+#include "output_files.h"
+
+#include <fstream>
+
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/simulation_file.h"
+#include "mvtwin/core/version.h"
+
+namespace mvtwin::tools {
+
+void write_simulation_result(const std::filesystem::path& out, const forward::ClosureResult& r,
+                             const forward::ClosureOptions& o, const ValveParameters& par,
+                             const Patient& p, const std::string& patient_file,
+                             const Context& ctx) {
+  SimulationRecord rec = forward::make_simulation_record(r, o, par);
+  rec.patient_id = p.id;
+  rec.patient_file = patient_file;
+  rec.synthetic = p.synthetic;
+  rec.provenance.version = kVersion;
+  rec.provenance.command = ctx.command_line;
+  rec.provenance.created_utc = utc_now_iso8601();
+  rec.provenance.seed = p.provenance.seed;
+  write_simulation_file(out, rec);
+}
+
+void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent) {
+  if (path.empty()) return;
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream f(tmp);
+    f << j.dump(indent) << "\n";
+    if (!f) throw Error(path.string() + ": cannot write");
+  });
+}
+
+}  // namespace mvtwin::tools

@@ -1,0 +1,25 @@
+#pragma once
+// Result files the commands share: a simulation file with the command's provenance, and JSON
+// summaries, both written atomically.
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/patient.h"
+#include "mvtwin/forward/closure_simulation.h"
+
+namespace mvtwin::tools {
+
+/// Writes `result` of `patient` (read from `patient_file`) as a simulation file recording the
+/// options, parameters, mvtwin version, command line, time and the patient's seed.
+void write_simulation_result(const std::filesystem::path& out, const forward::ClosureResult& result,
+                             const forward::ClosureOptions& options,
+                             const ValveParameters& parameters, const Patient& patient,
+                             const std::string& patient_file, const Context& ctx);
+
+/// Writes `j` (indented by `indent`) to `path` atomically; nothing for an empty path.
+void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent = 2);
+
+}  // namespace mvtwin::tools
