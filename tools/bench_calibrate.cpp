@@ -32,8 +32,6 @@ namespace {
 
 void save_json(const std::string& path, const json& j) { write_json_file(path, j, 1); }
 
-json nan_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
 }  // namespace
 
 void register_bench_calibrate(CLI::App& bench, Context& ctx) {
@@ -211,8 +209,6 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
             row.update({{"ok", false}, {"reason", e.what()}});
             std::cout << "patient " << ps << " " << m << ": " << e.what() << "\n";
           }
-          for (auto& [k, v] : row.items())
-            if (v.is_number_float() && !std::isfinite(v.get<double>())) v = nan_null(v.get<double>());
           runs.push_back(row);
           save_json(*json_path, summary());
         }

@@ -1,6 +1,7 @@
 #include "mvtwin/core/calibration_file.h"
 
 #include "hdf5_io.h"
+#include "result_header.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
@@ -41,24 +42,10 @@ void write_calibration_file(const std::filesystem::path& path, const Calibration
   }
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::Location root = h5::Location::create_file(tmp);
-    root.attr("format", std::string(kFormat));
-    root.attr("format_version", kFormatVersion);
-    root.attr("patient_id", r.patient_id);
-    root.attr("patient_file", r.patient_file);
-    root.attr("synthetic", static_cast<long>(r.synthetic));
-    root.attr("data_origin", std::string(r.synthetic
-                                             ? "SYNTHETIC: calibration of a virtual patient"
-                                             : "calibration of real or user-provided data"));
-    root.attr("mvtwin_version",
-              r.provenance.version.empty() ? std::string(kVersion) : r.provenance.version);
-    root.attr("command", r.provenance.command);
-    root.attr("created_utc", r.provenance.created_utc);
-    root.attr("seed", static_cast<long>(r.provenance.seed));
+    h5::write_result_header(root, kFormat, kFormatVersion, "calibration",
+                            {r.patient_id, r.patient_file, r.synthetic, r.provenance, r.options});
     root.attr("method", r.method);
     root.attr("termination", r.termination);
-    std::vector<std::string> opts;
-    for (const auto& [k, v] : r.options) opts.push_back(k + "=" + v);
-    root.write_strings("options", opts);
 
     const h5::Location fit = root.create_group("fit");
     fit.attr("description",
@@ -101,28 +88,15 @@ void write_calibration_file(const std::filesystem::path& path, const Calibration
 
 CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
   const h5::Location root = h5::Location::open_file(path);
-  if (!root.has_attr("format") || root.attr_string("format") != kFormat) {
-    root.fail("", std::string("not an mvtwin calibration file (root attribute format != '") +
-                      kFormat + "')");
-  }
-  if (root.attr_long("format_version") > kFormatVersion) {
-    root.fail("", "format_version is newer than this mvtwin reads");
-  }
+  h5::ResultHeader h = h5::read_result_header(root, kFormat, kFormatVersion, "calibration");
   CalibrationRecord r;
-  r.patient_id = root.attr_string("patient_id");
-  r.patient_file = root.attr_string("patient_file");
-  r.synthetic = root.attr_long("synthetic") != 0;
-  r.provenance.version = root.attr_string("mvtwin_version");
-  r.provenance.command = root.attr_string("command");
-  r.provenance.created_utc = root.attr_string("created_utc");
-  r.provenance.seed = static_cast<std::uint64_t>(root.attr_long("seed"));
+  r.patient_id = std::move(h.patient_id);
+  r.patient_file = std::move(h.patient_file);
+  r.synthetic = h.synthetic;
+  r.provenance = std::move(h.provenance);
+  r.options = std::move(h.options);
   r.method = root.attr_string("method");
   r.termination = root.attr_string("termination");
-  for (const std::string& kv : root.read_strings("options")) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos) root.fail("options", "entry without '=': " + kv);
-    r.options.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-  }
   const h5::Location fit = root.open_group("fit");
   r.names = fit.read_strings("names");
   const long n = static_cast<long>(r.names.size());

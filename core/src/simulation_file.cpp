@@ -1,6 +1,7 @@
 #include "mvtwin/core/simulation_file.h"
 
 #include "hdf5_io.h"
+#include "result_header.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
@@ -37,28 +38,14 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
   }
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::Location root = h5::Location::create_file(tmp);
-    root.attr("format", std::string(kFormat));
-    root.attr("format_version", kFormatVersion);
-    root.attr("patient_id", r.patient_id);
-    root.attr("patient_file", r.patient_file);
-    root.attr("synthetic", static_cast<long>(r.synthetic));
-    root.attr("data_origin", std::string(r.synthetic
-                                             ? "SYNTHETIC: simulation of a virtual patient"
-                                             : "simulation of real or user-provided data"));
-    root.attr("mvtwin_version",
-              r.provenance.version.empty() ? std::string(kVersion) : r.provenance.version);
-    root.attr("command", r.provenance.command);
-    root.attr("created_utc", r.provenance.created_utc);
-    root.attr("seed", static_cast<long>(r.provenance.seed));
+    h5::write_result_header(root, kFormat, kFormatVersion, "simulation",
+                            {r.patient_id, r.patient_file, r.synthetic, r.provenance, r.options});
     root.attr("status", r.status);
     root.attr("reason", r.reason);
     root.attr("units_length", std::string(units::kLength));
     root.attr("units_time", std::string(units::kTime));
     root.attr("units_stress", std::string(units::kStress));
 
-    std::vector<std::string> opts;
-    for (const auto& [k, v] : r.options) opts.push_back(k + "=" + v);
-    root.write_strings("options", opts);
     const h5::Location par = root.create_group("parameters", true);
     r.parameters.for_each([&](const std::string& n, double v, const char* unit) {
       par.write_scalar(n, v, unit);
@@ -108,28 +95,15 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
 
 SimulationRecord read_simulation_file(const std::filesystem::path& path) {
   const h5::Location root = h5::Location::open_file(path);
-  if (!root.has_attr("format") || root.attr_string("format") != kFormat) {
-    root.fail("", std::string("not an mvtwin simulation file (root attribute format != '") +
-                      kFormat + "')");
-  }
-  if (root.attr_long("format_version") > kFormatVersion) {
-    root.fail("", "format_version is newer than this mvtwin reads");
-  }
+  h5::ResultHeader h = h5::read_result_header(root, kFormat, kFormatVersion, "simulation");
   SimulationRecord r;
-  r.patient_id = root.attr_string("patient_id");
-  r.patient_file = root.attr_string("patient_file");
-  r.synthetic = root.attr_long("synthetic") != 0;
-  r.provenance.version = root.attr_string("mvtwin_version");
-  r.provenance.command = root.attr_string("command");
-  r.provenance.created_utc = root.attr_string("created_utc");
-  r.provenance.seed = static_cast<std::uint64_t>(root.attr_long("seed"));
+  r.patient_id = std::move(h.patient_id);
+  r.patient_file = std::move(h.patient_file);
+  r.synthetic = h.synthetic;
+  r.provenance = std::move(h.provenance);
+  r.options = std::move(h.options);
   r.status = root.attr_string("status");
   r.reason = root.attr_string("reason");
-  for (const std::string& kv : root.read_strings("options")) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos) root.fail("options", "entry without '=': " + kv);
-    r.options.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-  }
   r.parameters.for_each([&](const std::string& n, double& v, const char*) {
     v = root.open_group("parameters").read_scalar(n);
   });

@@ -96,9 +96,9 @@ std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o
   std::vector<double> lo(s.zlo.data(), s.zlo.data() + n), hi(s.zhi.data(), s.zhi.data() + n);
   opt.set_lower_bounds(lo);
   opt.set_upper_bounds(hi);
-  // One scale per parameter as the first step, smaller where a bound is nearer.
+  // One scale per parameter as the first step, less where the bounds are closer.
   std::vector<double> step(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) step[i] = std::min({1.0, 0.5 * (hi[i] - lo[i]), 1.0});
+  for (int i = 0; i < n; ++i) step[i] = std::min(1.0, 0.5 * (hi[i] - lo[i]));
   opt.set_initial_step(step);
   opt.set_xtol_abs(o.step_tolerance);
   opt.set_ftol_abs(o.error_tolerance);

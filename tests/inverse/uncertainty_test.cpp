@@ -40,7 +40,6 @@ TEST(Uncertainty, ParametersTheDataDoNotSeeAreUnidentified) {
   J.col(0).setLinSpaced(50, 1.0, 2.0);
   J.col(1) = J.col(0);  // only their sum is seen
   J.col(2).setConstant(0.0);  // not seen at all
-  J(0, 1) += 0.0;
   CalibrationResult r = with_specs(3);
   fill_uncertainty(J, 0.3, &r);
   EXPECT_FALSE(r.identified[0]);
