@@ -7,7 +7,10 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <atomic>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -52,6 +55,7 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
   auto observe = std::make_shared<std::vector<std::string>>();
   auto noise = std::make_shared<double>(0.5);
   auto co = std::make_shared<inverse::CalibrationOptions>();
+  auto observe_only = std::make_shared<bool>(false);
   cmd->add_option("--json", *json_path, "write the figures here (rewritten after each fit)");
   cmd->add_option("--cache", *cache, "directory keeping the observed virtual patients");
   cmd->add_option("--patients", *n, "number of virtual patients")->default_val(10)->check(CLI::Range(1, 10000));
@@ -65,8 +69,17 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
   cmd->add_option("--noise", *noise, "observation noise SD, mm")->default_val(0.5);
   cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2);
   cmd->add_option("--max-sims", co->max_simulations, "simulation budget per fit")->default_val(80);
+  auto no_scan = std::make_shared<bool>(false);
+  cmd->add_option("--scan", co->restlength_scan,
+                  "common rest-length offsets simulated before the optimizer starts")
+      ->delimiter(',')
+      ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
+  cmd->add_flag("--no-scan", *no_scan, "start the optimizer at the defaults, without the scan");
+  cmd->add_flag("--observe-only", *observe_only,
+                "only simulate the observed closures into --cache (--jobs patients at once)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
+      if (*no_scan) co->restlength_scan.clear();
       forward::ClosureOptions model;
       ValveParameters defaults;
       for (const auto& a : *sets) forward::apply_setting(a, &model, &defaults);
@@ -142,15 +155,75 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
                       {"created_utc", utc_now_iso8601()}}}};
       };
       if (!cache->empty()) fs::create_directories(*cache);
+      auto patient_seed = [&](int i) {
+        return static_cast<std::uint64_t>(*seed) * 1000 + static_cast<std::uint64_t>(i) + 1;
+      };
+      // The cache key holds the observation model and the noise, so that a changed --observe-set
+      // or --noise never reuses an observation made otherwise.
+      std::uint64_t key = 1469598103934665603ull;  // FNV-1a
+      std::string description = "noise=" + std::to_string(*noise);
+      for (const auto& [name, value] : forward::describe_options(vo.simulation))
+        description += " " + name + "=" + value;
+      for (char c : description) key = (key ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+      char key_hex[17];
+      std::snprintf(key_hex, sizeof key_hex, "%016llx", static_cast<unsigned long long>(key));
+      auto cache_path = [&](std::uint64_t ps) {
+        return cache->empty() ? fs::path()
+                              : fs::path(*cache) / ("observed_" + std::to_string(ps) + "_" +
+                                                    std::string(key_hex, 8) + ".h5");
+      };
+      // Phase 1: the observed closures missing from the cache, --jobs patients at once (each
+      // simulation is single-threaded, and concurrent simulations are bit-identical to serial ones).
+      if (!cache->empty()) {
+        std::vector<int> todo;
+        for (int i = 0; i < *n; ++i)
+          if (!fs::exists(cache_path(patient_seed(i)))) todo.push_back(i);
+        std::atomic<std::size_t> next{0};
+        std::mutex out;
+        auto worker = [&] {
+          for (std::size_t k; (k = next++) < todo.size();) {
+            const int i = todo[k];
+            const std::uint64_t ps = patient_seed(i);
+            VirtualPatientOptions po;
+            po.pathology = static_cast<Pathology>(i % kNumPathologies);
+            const auto t0 = std::chrono::steady_clock::now();
+            {
+              std::lock_guard<std::mutex> lock(out);
+              std::cout << "patient " << i + 1 << "/" << *n << " (" << pathology_name(*po.pathology)
+                        << "): simulating its observed closure ..." << std::endl;
+            }
+            try {
+              Patient p = make_virtual_patient(ps, po);
+              forward::simulate_observed_closure(&p, vo);
+              const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+              std::lock_guard<std::mutex> lock(out);  // also serializes HDF5 (not built thread-safe)
+              write_patient(cache_path(ps), p);
+              std::cout << "patient " << i + 1 << "/" << *n << ": observed in " << s << " s -> "
+                        << cache_path(ps).string() << std::endl;
+            } catch (const Error& e) {
+              std::lock_guard<std::mutex> lock(out);
+              std::cout << "patient " << i + 1 << "/" << *n << ": no observation (" << e.what()
+                        << "); the fits will skip it" << std::endl;
+            }
+          }
+        };
+        std::vector<std::thread> pool;
+        const int nt = std::max(1, std::min<int>(co->jobs, static_cast<int>(todo.size())));
+        for (int t = 0; t < nt; ++t) pool.emplace_back(worker);
+        for (auto& t : pool) t.join();
+      } else if (*observe_only) {
+        throw Error("bench calibrate: --observe-only needs --cache DIR");
+      }
+      if (*observe_only) return 0;
       for (int i = 0; i < *n; ++i) {
         VirtualPatientOptions po;
         po.pathology = static_cast<Pathology>(i % kNumPathologies);
-        const std::uint64_t ps = static_cast<std::uint64_t>(*seed) * 1000 + static_cast<std::uint64_t>(i) + 1;
+        const std::uint64_t ps = patient_seed(i);
         bool all_done = true;
         for (const auto& m : *methods) all_done = all_done && done(ps, m);
         if (all_done) continue;
         Patient p;
-        const fs::path cached = cache->empty() ? fs::path() : fs::path(*cache) / ("observed_" + std::to_string(ps) + ".h5");
+        const fs::path cached = cache_path(ps);
         const auto t0 = std::chrono::steady_clock::now();
         try {
           if (!cached.empty() && fs::exists(cached)) {

@@ -147,11 +147,18 @@ void register_calibrate(CLI::App& app, Context& ctx) {
                   "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
   cmd->add_flag("--all-frames", *all_frames,
                 "compare every observed closing frame, not only the first closed one");
+  auto no_scan = std::make_shared<bool>(false);
+  cmd->add_option("--scan", co->restlength_scan,
+                  "common rest-length offsets simulated before the optimizer starts")
+      ->delimiter(',')
+      ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
+  cmd->add_flag("--no-scan", *no_scan, "start the optimizer at the defaults, without the scan");
   cmd->add_option("--vtk", *vtk, "directory for the valve before and after (ParaView)");
   cmd->add_option("--set", *sets,
                   "name=value for the calibration model (repeatable), e.g. --set ures=20");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
+      if (*no_scan) co->restlength_scan.clear();
       const Patient p = read_patient(*file, false);
       refuse_overwrite_path(*out, *force);
       forward::ClosureOptions o;

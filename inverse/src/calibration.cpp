@@ -90,7 +90,7 @@ struct Scaling {
   }
 };
 
-std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o) {
+std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o, int budget) {
   const int n = static_cast<int>(s.x0.size());
   nlopt::opt opt(nlopt_algorithm(o.method), static_cast<unsigned>(n));
   std::vector<double> lo(s.zlo.data(), s.zlo.data() + n), hi(s.zhi.data(), s.zhi.data() + n);
@@ -102,7 +102,7 @@ std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o
   opt.set_initial_step(step);
   opt.set_xtol_abs(o.step_tolerance);
   opt.set_ftol_abs(o.error_tolerance);
-  opt.set_maxeval(o.max_simulations);
+  opt.set_maxeval(budget);
   // BOBYQA and COBYLA start by evaluating the start point and one step along each axis
   // (both directions for BOBYQA): run those in parallel now, so that the optimizer finds
   // them in the objective's cache.
@@ -202,7 +202,8 @@ class ClosureCost : public ceres::CostFunction {
   const CalibrationOptions& o_;
 };
 
-std::string run_ceres(Tracker& tr, const Scaling& s, const CalibrationOptions& o, int m) {
+std::string run_ceres(Tracker& tr, const Scaling& s, const CalibrationOptions& o, int m,
+                      int budget) {
   const int n = static_cast<int>(s.x0.size());
   std::vector<double> z(static_cast<size_t>(n), 0.0);
   ceres::Problem::Options po;
@@ -218,7 +219,7 @@ std::string run_ceres(Tracker& tr, const Scaling& s, const CalibrationOptions& o
   so.minimizer_type = ceres::TRUST_REGION;
   so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = std::max(1, o.max_simulations / (n + 1));
+  so.max_num_iterations = std::max(1, budget / (n + 1));
   so.parameter_tolerance = 1e-3;
   so.function_tolerance = 1e-4;
   so.initial_trust_region_radius = 1.0;  // one scale per parameter
@@ -266,6 +267,8 @@ void fill_uncertainty(const Eigen::MatrixXd& J, double noise_mm, CalibrationResu
 
 CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& o) {
   if (o.method != "ceres") nlopt_algorithm(o.method);  // unknown names fail before any work
+  for (double d : o.restlength_scan)
+    if (!std::isfinite(d)) throw Error("calibrate: rest-length scan offsets must be finite");
   if (!(o.jobs >= 1 && o.max_simulations >= 1 && o.step_tolerance > 0 &&
         o.error_tolerance >= 0 && o.huber_mm > 0 && o.fd_step > 0)) {
     throw Error("calibrate: jobs, budget, tolerances, Huber width and step must be positive");
@@ -287,8 +290,32 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
   if (!e0.ok) throw Error("calibrate: the start point cannot be simulated: " + e0.reason);
   r.error_before_mm = e0.mean_mm;
 
-  r.termination = o.method == "ceres" ? run_ceres(tr, s, o, objective.num_residuals())
-                                      : run_nlopt(tr, s, o);
+  // Rest-length scan: a line of common offsets, all simulated at once; the optimizer starts
+  // from the best point on it.
+  std::vector<int> rest;
+  for (int i = 0; i < space.size(); ++i)
+    if (space.specs()[i].group == "restlength") rest.push_back(i);
+  if (!rest.empty() && !o.restlength_scan.empty()) {
+    std::vector<Eigen::VectorXd> line;
+    for (double d : o.restlength_scan) {
+      Eigen::VectorXd x = s.x0;
+      for (int i : rest) x[i] = std::clamp(x[i] + d, space.lower()[i], space.upper()[i]);
+      line.push_back(x);
+    }
+    tr.evaluate_many(line);
+    if (tr.best() < e0.mean_mm) {
+      s.x0 = tr.best_x();
+      s.zlo = (space.lower() - s.x0).cwiseQuotient(s.scale);
+      s.zhi = (space.upper() - s.x0).cwiseQuotient(s.scale);
+    }
+  }
+  r.optimizer_start = s.x0;
+
+  // The budget counts the simulations before the optimizer too, but leaves it at least a
+  // start design's worth.
+  const int budget = std::max(2 * space.size() + 2, o.max_simulations - objective.simulations());
+  r.termination = o.method == "ceres" ? run_ceres(tr, s, o, objective.num_residuals(), budget)
+                                      : run_nlopt(tr, s, o, budget);
   r.fitted = tr.best_x();
   r.error_after_mm = tr.best();
   r.parameters = space.apply(r.fitted);
@@ -335,6 +362,12 @@ CalibrationRecord make_calibration_record(const CalibrationResult& r, const Pati
   c.options.emplace_back("fit_error_tolerance", std::to_string(o.error_tolerance));
   c.options.emplace_back("fit_huber_mm", std::to_string(o.huber_mm));
   c.options.emplace_back("fit_fd_step", std::to_string(o.fd_step));
+  std::string scan;
+  for (double d : o.restlength_scan) {
+    if (!scan.empty()) scan += ',';
+    scan += std::to_string(d);
+  }
+  c.options.emplace_back("fit_restlength_scan", scan.empty() ? "none" : scan);
   c.method = r.method;
   c.termination = r.termination;
   const auto n = static_cast<Eigen::Index>(r.specs.size());

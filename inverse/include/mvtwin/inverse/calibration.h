@@ -20,11 +20,16 @@ struct CalibrationOptions {
   /// Stop when a step changes every parameter by less than this many of its scales.
   double step_tolerance = 0.05;
   /// Stop when the mean error improves by less than this, mm.
-  double error_tolerance = 1e-3;
+  double error_tolerance = 1e-4;
   /// Ceres: Huber loss width, mm (residuals beyond it count linearly).
   double huber_mm = 2.0;
   /// Ceres: forward-difference step in scales of each parameter.
   double fd_step = 0.25;
+  /// Before the optimizer: when rest-length factors are fitted, simulate these common offsets
+  /// of all of them from the start (in parallel) and start the optimizer from the best of
+  /// them and the start. Local optimizers otherwise stall on valves far from the defaults,
+  /// e.g. elongated chordae, trading the missing length for pressure. Empty: no scan.
+  std::vector<double> restlength_scan = {-0.2, -0.1, 0.1, 0.2, 0.3, 0.4, 0.5};
   /// Observation noise SD for the covariance, mm; <= 0: the fit's residual RMS.
   double noise_mm = 0.0;
   /// Called after every improvement and every iteration.
@@ -41,7 +46,8 @@ struct HistoryEntry {
 struct CalibrationResult {
   std::string method, termination;
   std::vector<ParameterSpec> specs;
-  Eigen::VectorXd start, fitted;
+  /// `start`: the defaults; `optimizer_start`: where the optimizer began (after the scan).
+  Eigen::VectorXd start, optimizer_start, fitted;
   /// Standard deviations and covariance (user units) from J^T J at the fit, scaled by the
   /// noise SD; correlation matrix. NaN where J^T J is singular.
   Eigen::VectorXd sd;
