@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <algorithm>
 #include <atomic>
 #include <mutex>
 #include <string>
@@ -110,8 +111,8 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
       auto summary = [&] {
         json by_method = json::object();
         for (const std::string& m : *methods) {
-          double before = 0, after = 0, noise_sum = 0, wall = 0;
-          int k = 0, sims = 0, failed = 0, ok = 0;
+          double before = 0, after = 0, noise_sum = 0, wall = 0, wall_max = 0, rl_abs = 0;
+          int k = 0, sims = 0, failed = 0, ok = 0, rl_ident = 0, rl_within = 0, rl_unident = 0;
           for (const auto& r : runs) {
             if (r.value("method", "") != m) continue;
             ++k;
@@ -123,6 +124,18 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
             wall += r["wall_s"].get<double>();
             sims += r["sims"].get<int>();
             failed += r["failed_sims"].get<int>();
+            wall_max = std::max(wall_max, r["wall_s"].get<double>());
+            // Rest-length factors: the target is 0.05 of the truth where the data identify them.
+            for (const auto& [name, err] : r["param_error"].items()) {
+              if (name.rfind("restlength_factor_", 0) != 0) continue;
+              if (!r["identified"].value(name, false)) {
+                ++rl_unident;
+                continue;
+              }
+              ++rl_ident;
+              rl_abs += std::abs(err.get<double>());
+              if (std::abs(err.get<double>()) <= 0.05) ++rl_within;
+            }
           }
           if (ok == 0) continue;
           by_method[m] = {{"fits", k},
@@ -132,6 +145,11 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
                           {"noise_mm", noise_sum / ok},
                           {"error_after_over_noise", after / noise_sum},
                           {"wall_s_mean", wall / ok},
+                          {"wall_s_max", wall_max},
+                          {"restlength_identified", rl_ident},
+                          {"restlength_identified_within_0.05", rl_within},
+                          {"restlength_identified_abs_error_mean", rl_ident ? rl_abs / rl_ident : 0.0},
+                          {"restlength_unidentified", rl_unident},
                           {"sims_mean", static_cast<double>(sims) / ok},
                           {"failed_sims", failed}};
         }
@@ -288,7 +306,19 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
       }
       const json s = summary();
       save_json(*json_path, s);
-      std::cout << "overall: " << s["overall"].dump() << "\n";
+      std::printf("%-8s %5s %22s %11s %10s %12s %12s %28s\n", "method", "fits", "error before->after mm",
+                  "after/noise", "sims mean", "wall mean s", "wall max s", "rest lengths within 0.05");
+      for (const auto& [m, o] : s["overall"].items()) {
+        char within[64];
+        std::snprintf(within, sizeof within, "%d/%d identified (%d not)",
+                      o["restlength_identified_within_0.05"].get<int>(),
+                      o["restlength_identified"].get<int>(), o["restlength_unidentified"].get<int>());
+        std::printf("%-8s %5d %13.3f -> %5.3f %11.2f %10.1f %12.1f %12.1f %28s\n", m.c_str(),
+                    o["succeeded"].get<int>(), o["error_before_mm"].get<double>(),
+                    o["error_after_mm"].get<double>(), o["error_after_over_noise"].get<double>(),
+                    o["sims_mean"].get<double>(), o["wall_s_mean"].get<double>(),
+                    o["wall_s_max"].get<double>(), within);
+      }
       if (!json_path->empty()) std::cout << "wrote " << *json_path << "\n";
       return 0;
     };
