@@ -1,0 +1,36 @@
+#pragma once
+// Raw voxel bytes shared by the NRRD and MetaImage readers and writers: file bytes, zlib/gzip,
+// voxel types and byte order.
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace mvtwin::raw {
+
+enum class VoxelType { kU8, kI8, kU16, kI16, kU32, kI32, kF32, kF64 };
+
+int bytes_of(VoxelType t);
+
+/// The whole file; throws mvtwin::Error naming it when missing or unreadable.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+/// Inflates zlib or gzip data (detected from its header) that must give exactly `expected`
+/// bytes; throws mvtwin::Error naming `what` for corrupt or short data.
+std::string inflate(const std::string& compressed, std::size_t expected, const std::string& what);
+
+/// Deflates to gzip (`gzip` true: NRRD's "gzip" encoding) or zlib (MetaImage) format.
+std::string deflate(const char* data, std::size_t bytes, bool gzip);
+
+/// `count` voxels of type `t` from `bytes` (at least count * bytes_of(t) of them), converted to
+/// float; `big_endian` for the file's byte order.
+std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian, std::size_t count);
+
+/// Splits on whitespace.
+std::vector<std::string> words(const std::string& s);
+
+/// Parses a floating-point number that must fill `s` (after trimming); throws mvtwin::Error
+/// with `what` in the message otherwise.
+double number(const std::string& s, const std::string& what);
+
+}  // namespace mvtwin::raw
