@@ -22,6 +22,8 @@ void register_calibrate(CLI::App& app, Context& ctx);
 void register_bench_calibrate(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).
 void register_clip(CLI::App& app, Context& ctx);
+/// mvtwin render-tee (tools/render_tee.cpp).
+void register_render_tee(CLI::App& app, Context& ctx);
 /// Throws mvtwin::Error when `path` exists and `force` is not set.
 void refuse_overwrite_path(const std::filesystem::path& path, bool force);
 

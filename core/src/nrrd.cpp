@@ -101,7 +101,12 @@ std::string fmt(double v) {
 }
 
 std::string fmt(const Eigen::Vector3d& v) {
-  return "(" + fmt(v[0]) + "," + fmt(v[1]) + "," + fmt(v[2]) + ")";
+  std::string s = "(";
+  for (int k = 0; k < 3; ++k) {
+    s += fmt(v[k]);
+    s += k < 2 ? ',' : ')';
+  }
+  return s;
 }
 
 }  // namespace
