@@ -89,6 +89,9 @@ void register_render_tee(CLI::App& app, Context& ctx) {
       ->default_val(o->dropout_fraction);
   cmd->add_option("--attenuation", o->attenuation_db_per_mm, "dB/mm after gain compensation")
       ->default_val(o->attenuation_db_per_mm);
+  cmd->add_option("--probe-jitter", o->probe_jitter_deg,
+                  "variation of the probe's pose between patients, degrees (0: the standard view)")
+      ->default_val(o->probe_jitter_deg);
   cmd->add_option("--seed", o->seed, "random seed (speckle, noise, drop-outs)")->default_val(o->seed);
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {

@@ -183,7 +183,8 @@ std::string TeeRenderOptions::invalid() const {
   if (!(voxel_mm >= 0.3 && voxel_mm <= 3.0)) return "voxel_mm must be in [0.3, 3] mm";
   if (!(box_mm >= 20 && box_mm <= 200)) return "box_mm must be in [20, 200] mm";
   if (!(sector_deg >= 20 && sector_deg <= 110)) return "sector_deg must be in [20, 110] degrees";
-  if (!(probe_depth_mm >= 20 && probe_depth_mm <= 200)) return "probe_depth_mm must be in [20, 200] mm";
+  if (!(probe_depth_mm >= 30 && probe_depth_mm <= 200)) return "probe_depth_mm must be in [30, 200] mm";
+  if (!(probe_jitter_deg >= 0 && probe_jitter_deg <= 30)) return "probe_jitter_deg must be in [0, 30]";
   if (!(axial_psf_mm > 0 && lateral_psf_mm > 0 && axial_psf_mm < 10 && lateral_psf_mm < 10))
     return "PSF widths must be in (0, 10) mm";
   if (!(attenuation_db_per_mm >= 0 && attenuation_db_per_mm < 2)) return "attenuation must be in [0, 2) dB/mm";
@@ -202,10 +203,23 @@ TeeGeometry tee_geometry(const ValveSequence& seq, const TeeRenderOptions& o) {
   const ValveAxes v = valve_axes(ref);
   TeeGeometry g;
   // Mid-oesophageal view: the probe behind the left atrium, posterior and above the valve.
-  const Eigen::Vector3d to_probe = (0.88 * v.n - 0.47 * v.a).normalized();
-  g.apex = v.c + o.probe_depth_mm * to_probe;
+  Eigen::Vector3d to_probe = (0.88 * v.n - 0.47 * v.a).normalized();
+  double depth = o.probe_depth_mm;
+  Eigen::Vector3d centre = v.c;
+  double spin = 0;
+  if (o.probe_jitter_deg > 0) {
+    Rng rng(o.seed ^ 0x9e3779b97f4a7c15ull);
+    const double j = o.probe_jitter_deg * kDeg;
+    const Eigen::Vector3d tilt_axis = to_probe.cross(Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal())).normalized();
+    to_probe = Eigen::AngleAxisd(rng.uniform(-j, j), tilt_axis) * to_probe;
+    spin = rng.uniform(-2 * j, 2 * j);
+    depth += rng.uniform(-8, 8);
+    centre += Eigen::Vector3d(rng.uniform(-6, 6), rng.uniform(-6, 6), rng.uniform(-6, 6));
+  }
+  g.apex = v.c + depth * to_probe;
   const Eigen::Vector3d axis = -to_probe;
-  const Eigen::Vector3d lateral = (v.l - axis * axis.dot(v.l)).normalized();
+  const Eigen::Vector3d lateral =
+      Eigen::AngleAxisd(spin, axis) * (v.l - axis * axis.dot(v.l)).normalized();
   g.axes.col(0) = lateral;
   g.axes.col(1) = axis.cross(lateral);
   g.axes.col(2) = axis;
@@ -214,7 +228,7 @@ TeeGeometry tee_geometry(const ValveSequence& seq, const TeeRenderOptions& o) {
   g.grid.spacing = Eigen::Vector3d::Constant(o.voxel_mm);
   g.grid.direction = g.axes;
   const double half = 0.5 * (n - 1) * o.voxel_mm;
-  g.grid.origin = v.c - g.axes * Eigen::Vector3d(half, half, half);
+  g.grid.origin = centre - g.axes * Eigen::Vector3d(half, half, half);
   return g;
 }
 
@@ -227,7 +241,9 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
   Rng rng(o.seed * 1000003ull + static_cast<std::uint64_t>(frame));
 
   // Beam space: range r (fastest), lateral angle, elevation angle.
-  const double D = o.probe_depth_mm, half_box = 0.5 * std::sqrt(3.0) * o.box_mm;
+  const double mid = 0.5 * (g.grid.size[0] - 1);
+  const double D = (g.grid.position(mid, mid, mid) - g.apex).norm();  // apex to the cube's centre
+  const double half_box = 0.5 * std::sqrt(3.0) * o.box_mm;
   const double r0 = std::max(2.0, D - half_box), r1 = D + half_box;
   const double dr = std::min(0.5, o.axial_psf_mm);
   const double dth = 0.8 * o.lateral_psf_mm / D;  // rad: lateral samples finer than the PSF

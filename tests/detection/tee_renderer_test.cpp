@@ -119,6 +119,32 @@ TEST(TeeRenderer, FullyDevelopedSpeckleHasRayleighStatistics) {
   EXPECT_LT(clean_sd, 0.35 * expected) << "without speckle the region is nearly uniform";
 }
 
+TEST(TeeRenderer, ProbeJitterVariesTheViewWithinItsBounds) {
+  const Patient p = make_virtual_patient(3);
+  const int ed = p.sequence.end_diastole;
+  const Eigen::Vector3d c = p.sequence.frames[ed].annulus.colwise().mean().transpose();
+  TeeRenderOptions o = small();
+  const TeeGeometry standard = tee_geometry(p.sequence, o);
+  o.probe_jitter_deg = 15;
+  double max_tilt = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    o.seed = seed;
+    const TeeGeometry g = tee_geometry(p.sequence, o);
+    EXPECT_NEAR(g.axes.determinant(), 1.0, 1e-9);
+    EXPECT_LT((g.axes.transpose() * g.axes - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+    const double depth = (g.apex - c).norm();
+    EXPECT_GE(depth, o.probe_depth_mm - 8 - 1e-9);
+    EXPECT_LE(depth, o.probe_depth_mm + 8 + 1e-9);
+    const double tilt = std::acos(std::clamp((c - g.apex).normalized().dot((c - standard.apex).normalized()), -1.0, 1.0));
+    EXPECT_LE(tilt, 15 * M_PI / 180 + 1e-9);
+    max_tilt = std::max(max_tilt, tilt);
+    const double half = 0.5 * (g.grid.size[0] - 1);
+    EXPECT_LE((g.grid.position(half, half, half) - c).cwiseAbs().maxCoeff(), 6 + 1e-9);
+    EXPECT_EQ(g.apex, tee_geometry(p.sequence, o).apex) << "same seed, same view";
+  }
+  EXPECT_GT(max_tilt, 5 * M_PI / 180) << "the views do vary";
+}
+
 TEST(TeeRenderer, InvalidOptionsAndFramesAreNamed) {
   const Patient p = make_virtual_patient(3);
   TeeRenderOptions o = small();

@@ -19,6 +19,11 @@ struct TeeRenderOptions {
   double box_mm = 90.0;            ///< edge of the output cube, centred on the annulus
   double sector_deg = 80.0;        ///< full opening of the pyramidal sector, both directions
   double probe_depth_mm = 78.0;    ///< probe (sector apex) to annulus centre
+  /// Variation of the acquisition between patients (drawn from `seed`): the probe's direction
+  /// tilts by up to this angle, the volume turns about the beam by up to twice it, the depth
+  /// changes by up to 8 mm and the cube's centre moves by up to 6 mm from the annulus centre.
+  /// 0: the standard view exactly.
+  double probe_jitter_deg = 0.0;
   double axial_psf_mm = 0.35;      ///< point-spread function SD along the beam
   double lateral_psf_mm = 1.1;     ///< PSF SD across the beam at probe_depth_mm (grows with depth)
   double attenuation_db_per_mm = 0.06;  ///< after time-gain compensation, two-way
