@@ -80,7 +80,7 @@ class Scene {
     const ValveAxes& v = axes_;
     const Eigen::Vector3d d = q - v.c;
     const double z = v.n.dot(d), x = v.a.dot(d), y = v.l.dot(d);
-    const double rho = std::hypot(x, y), R = v.radius;
+    const double rho = std::sqrt(x * x + y * y), R = v.radius;
     double e = blood_;
     // Left-ventricular myocardium: an ellipsoidal shell below the annulus, 10 mm thick.
     if (z < 2.0) {
@@ -244,10 +244,24 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
   const double mid = 0.5 * (g.grid.size[0] - 1);
   const double D = (g.grid.position(mid, mid, mid) - g.apex).norm();  // apex to the cube's centre
   const double half_box = 0.5 * std::sqrt(3.0) * o.box_mm;
-  const double r0 = std::max(2.0, D - half_box), r1 = D + half_box;
+  // The ranges that cross the cube: from the apex's distance to it to its farthest corner.
+  const double edge = (g.grid.size[0] - 1) * o.voxel_mm;
+  const Eigen::Vector3d apex_local = g.axes.transpose() * (g.apex - g.grid.origin);
+  const double r0 = std::max(2.0, (apex_local - apex_local.cwiseMax(0.0).cwiseMin(edge)).norm() - 3.0);
+  const double r1 = std::min(D + half_box, r0 + 2 * half_box + 6.0);
   const double dr = std::min(0.5, o.axial_psf_mm);
   const double dth = 0.8 * o.lateral_psf_mm / D;  // rad: lateral samples finer than the PSF
-  const double half_angle = 0.5 * o.sector_deg * kDeg;
+  // Only the beams that cross the output cube are formed.
+  double half_angle = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d v = g.axes.transpose() *
+        (g.grid.position((c & 1) * (g.grid.size[0] - 1), ((c >> 1) & 1) * (g.grid.size[1] - 1),
+                         ((c >> 2) & 1) * (g.grid.size[2] - 1)) - g.apex);
+    half_angle = v.z() <= 1e-6 ? 10.0 : std::max({half_angle, std::abs(std::atan(v.x() / v.z())),
+                                                   std::abs(std::atan(v.y() / v.z()))});
+    if (half_angle >= 10.0) break;
+  }
+  half_angle = std::min(0.5 * o.sector_deg * kDeg, half_angle + 2 * dth);
   const std::array<int, 3> n = {static_cast<int>((r1 - r0) / dr) + 1,
                                 2 * static_cast<int>(half_angle / dth) + 1,
                                 2 * static_cast<int>(half_angle / dth) + 1};
@@ -316,17 +330,19 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
     }
   }
   // Envelope, attenuation, noise, log compression.
+  std::vector<double> attenuation(static_cast<std::size_t>(n[0]));
+  for (int i0 = 0; i0 < n[0]; ++i0)
+    attenuation[static_cast<std::size_t>(i0)] = std::pow(10.0, -o.attenuation_db_per_mm * (r0 + i0 * dr - D) / 20.0);
   std::vector<float> grey(total);
   for (int i2 = 0; i2 < n[2]; ++i2) {
     for (int i1 = 0; i1 < n[1]; ++i1) {
       const std::size_t ray_index = static_cast<std::size_t>(i1) + static_cast<std::size_t>(n[1]) * i2;
       const std::size_t base = static_cast<std::size_t>(n[0]) * ray_index;
       for (int i0 = 0; i0 < n[0]; ++i0) {
-        const double r = r0 + i0 * dr;
-        const double att = std::pow(10.0, -o.attenuation_db_per_mm * (r - D) / 20.0);
+        const double att = attenuation[static_cast<std::size_t>(i0)];
         std::complex<double> field = (coherent[base + i0] + speck[base + i0] * norm) * att * gain[ray_index];
         field += o.noise * std::complex<double>(rng.normal(), rng.normal()) * std::sqrt(0.5);
-        const double db = 20.0 * std::log10(std::max(std::abs(field), 1e-12));
+        const double db = 10.0 * std::log10(std::max(std::norm(field), 1e-24));
         grey[base + i0] = static_cast<float>(
             255.0 * std::clamp((db + o.dynamic_range_db) / o.dynamic_range_db, 0.0, 1.0));
       }

@@ -1,0 +1,487 @@
+#include "mvtwin/detection/valve_detector.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <opencv2/core.hpp>
+#include <opencv2/ml.hpp>
+
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/rng.h"
+#include "mvtwin/detection/integral_volume.h"
+
+namespace mvtwin::detection {
+namespace {
+
+constexpr double kPositionSigmaMm = 3.0, kLandmarkSigmaMm = 2.0, kBoundarySigmaMm = 1.0;
+constexpr int kContext = 3;  // offset from the detected centre, image axes, mm
+
+/// World <-> voxel index of one volume.
+struct Voxels {
+  explicit Voxels(const ImageVolume& im)
+      : origin(im.origin), M(im.direction * im.spacing.asDiagonal()), Minv(M.inverse()), size(im.size),
+        voxel_mm(im.spacing.mean()) {}
+  Eigen::Vector3d index(const Eigen::Vector3d& x) const { return Minv * (x - origin); }
+  Eigen::Vector3d world(const Eigen::Vector3d& i) const { return origin + M * i; }
+  Eigen::Vector3i nearest(const Eigen::Vector3d& x) const {
+    const Eigen::Vector3d i = index(x);
+    return Eigen::Vector3i(static_cast<int>(std::lround(i[0])), static_cast<int>(std::lround(i[1])),
+                           static_cast<int>(std::lround(i[2])));
+  }
+  bool inside(const Eigen::Vector3i& p) const {
+    return p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < size[0] && p[1] < size[1] && p[2] < size[2];
+  }
+  Eigen::Vector3d origin;
+  Eigen::Matrix3d M, Minv;
+  std::array<int, 3> size;
+  double voxel_mm;
+};
+
+cv::Ptr<cv::ml::RTrees> make_forest(const DetectorOptions& o) {
+  cv::Ptr<cv::ml::RTrees> f = cv::ml::RTrees::create();
+  f->setMaxDepth(o.max_depth);
+  f->setMinSampleCount(5);
+  f->setRegressionAccuracy(0.0f);
+  f->setUseSurrogates(false);
+  f->setCalculateVarImportance(false);
+  f->setActiveVarCount(0);
+  f->setTermCriteria(cv::TermCriteria(cv::TermCriteria::MAX_ITER, o.trees, 0.0));
+  return f;
+}
+
+/// Features of voxel p, with the context (p's offset from `centre` in image axes) when given.
+void features(const IntegralVolume& iv, const ImageVolume& im, const Voxels& vx, const Eigen::Vector3i& p,
+              const std::vector<int>& scales, const Eigen::Vector3d* centre, float* out) {
+  voxel_features(iv, im, p, scales, out);
+  if (centre) {
+    const Eigen::Vector3d off = im.direction.transpose() * (vx.world(p.cast<double>()) - *centre);
+    float* c = out + feature_count(scales);
+    for (int a = 0; a < 3; ++a) c[a] = static_cast<float>(off[a]);
+  }
+}
+
+std::vector<float> predict(const cv::Ptr<cv::ml::RTrees>& f, cv::Mat& samples) {
+  cv::Mat out;
+  f->predict(samples, out);
+  std::vector<float> r(static_cast<std::size_t>(out.rows));
+  for (int i = 0; i < out.rows; ++i) r[static_cast<std::size_t>(i)] = out.at<float>(i, 0);
+  return r;
+}
+
+/// The position with the highest predicted proximity: the proximity-weighted mean of the
+/// best few candidates.
+Eigen::Vector3d best_of(const std::vector<Eigen::Vector3d>& xs, const std::vector<float>& score, int top = 6) {
+  std::vector<std::size_t> order(xs.size());
+  std::iota(order.begin(), order.end(), 0);
+  const auto k = std::min<std::size_t>(static_cast<std::size_t>(top), order.size());
+  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
+                    [&](std::size_t a, std::size_t b) { return score[a] > score[b]; });
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  double w = 0;
+  for (std::size_t i = 0; i < k; ++i) {
+    const double wi = std::max(1e-6, static_cast<double>(score[order[i]]));
+    s += wi * xs[order[i]];
+    w += wi;
+  }
+  return s / w;
+}
+
+/// Unit normals of the grid (towards the atrium side of the u x v orientation).
+Points3 grid_normals(const Points3& P, int ures, int vres) {
+  Points3 N(P.rows(), 3);
+  auto at = [&](int u, int v) {
+    u = ((u % ures) + ures) % ures;
+    v = std::clamp(v, 0, vres - 1);
+    return Eigen::Vector3d(P.row(static_cast<Eigen::Index>(v) * ures + u).transpose());
+  };
+  for (int v = 0; v < vres; ++v)
+    for (int u = 0; u < ures; ++u) {
+      const Eigen::Vector3d du = at(u + 1, v) - at(u - 1, v), dv = at(u, v + 1) - at(u, v - 1);
+      Eigen::Vector3d n = du.cross(dv);
+      const double len = n.norm();
+      N.row(static_cast<Eigen::Index>(v) * ures + u) = (len > 1e-12 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::UnitZ()).transpose();
+    }
+  return N;
+}
+
+}  // namespace
+
+std::string DetectorOptions::invalid() const {
+  if (scales.empty()) return "no feature scales";
+  for (int s : scales)
+    if (s < 1 || s > 32) return "feature scales must be 1..32 voxels";
+  if (trees < 1 || trees > 1000) return "trees must be 1..1000";
+  if (max_depth < 2 || max_depth > 30) return "max_depth must be 2..30";
+  if (samples_per_volume < 50) return "samples_per_volume must be at least 50";
+  if (!(position_step_mm > 0 && landmark_search_mm > 0 && track_search_mm > 0 && normal_search_mm > 0))
+    return "search sizes must be positive";
+  if (surface_iterations < 0 || surface_iterations > 20) return "surface_iterations must be 0..20";
+  return "";
+}
+
+struct ValveDetector::Impl {
+  DetectorOptions options;
+  ShapeModel shape;
+  cv::Ptr<cv::ml::RTrees> position, boundary;
+  std::vector<cv::Ptr<cv::ml::RTrees>> landmarks;  // kNumLandmarks
+  std::vector<Eigen::Vector3d> landmark_offset;    // mean landmark - centre, image axes, mm
+
+  int nf() const { return feature_count(options.scales); }
+};
+
+ValveDetector::ValveDetector() : impl_(std::make_unique<Impl>()) {}
+ValveDetector::~ValveDetector() = default;
+ValveDetector::ValveDetector(ValveDetector&&) noexcept = default;
+ValveDetector& ValveDetector::operator=(ValveDetector&&) noexcept = default;
+const ShapeModel& ValveDetector::shape() const { return impl_->shape; }
+const DetectorOptions& ValveDetector::options() const { return impl_->options; }
+
+ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, const DetectorOptions& o,
+                                   const std::function<void(const std::string&)>& progress) {
+  if (const std::string e = o.invalid(); !e.empty()) throw Error("detector: " + e);
+  std::vector<TrainingVolume> usable;
+  for (const TrainingVolume& t : data) {
+    if (!t.image || !t.truth || !t.truth->la_surface || t.image->data.size() != t.image->num_voxels()) continue;
+    bool all = true;
+    for (int l = 0; l < kNumLandmarks; ++l) all = all && t.truth->landmark_observed[static_cast<std::size_t>(l)];
+    if (all) usable.push_back(t);
+  }
+  if (usable.size() < 3)
+    throw Error("detector: needs at least 3 training volumes with landmarks and a surface, got " +
+                std::to_string(usable.size()));
+  ValveDetector d;
+  Impl& m = *d.impl_;
+  m.options = o;
+  auto say = [&](const std::string& s) {
+    if (progress) progress(s);
+  };
+  say("shape model");
+  std::vector<const ValveFrame*> truths;
+  for (const auto& t : usable) truths.push_back(t.truth);
+  m.shape = ShapeModel::train(truths);
+
+  const int nf = m.nf(), nc = nf + kContext;
+  Rng rng(o.seed);
+  auto gauss = [](double x, double s) { return static_cast<float>(std::exp(-0.5 * x * x / (s * s))); };
+  cv::Mat pos_x(0, nf, CV_32F), pos_y(0, 1, CV_32F), bnd_x(0, nc, CV_32F), bnd_y(0, 1, CV_32F);
+  std::vector<cv::Mat> lm_x(kNumLandmarks, cv::Mat(0, nc, CV_32F)), lm_y(kNumLandmarks, cv::Mat(0, 1, CV_32F));
+  m.landmark_offset.assign(kNumLandmarks, Eigen::Vector3d::Zero());
+  std::vector<float> row(static_cast<std::size_t>(nc));
+  auto push = [&](cv::Mat& X, cv::Mat& Y, float y, int cols) {
+    X.push_back(cv::Mat(1, cols, CV_32F, row.data()).clone());
+    Y.push_back(y);
+  };
+  for (const TrainingVolume& t : usable) {
+    const ImageVolume& im = *t.image;
+    const ValveFrame& f = *t.truth;
+    const IntegralVolume iv(im);
+    const Voxels vx(im);
+    const Eigen::Vector3d c = f.annulus.colwise().mean().transpose();
+    for (int l = 0; l < kNumLandmarks; ++l)
+      m.landmark_offset[static_cast<std::size_t>(l)] += im.direction.transpose() * (f.landmarks[static_cast<std::size_t>(l)] - c);
+    auto random_offset = [&](double r) {
+      return Eigen::Vector3d(rng.uniform(-r, r), rng.uniform(-r, r), rng.uniform(-r, r));
+    };
+    // Position: near the centre, around it, anywhere.
+    for (int s = 0; s < o.samples_per_volume; ++s) {
+      const double u = rng.uniform();
+      Eigen::Vector3i p;
+      if (u < 0.3) p = vx.nearest(c + random_offset(4.0));
+      else if (u < 0.6) p = vx.nearest(c + random_offset(15.0));
+      else p = Eigen::Vector3i(rng.uniform_int(0, im.size[0] - 1), rng.uniform_int(0, im.size[1] - 1), rng.uniform_int(0, im.size[2] - 1));
+      if (!vx.inside(p)) continue;
+      features(iv, im, vx, p, o.scales, nullptr, row.data());
+      push(pos_x, pos_y, gauss((vx.world(p.cast<double>()) - c).norm(), kPositionSigmaMm), nf);
+    }
+    // Landmarks: around each, with the context measured from a centre detected with error.
+    for (int l = 0; l < kNumLandmarks; ++l) {
+      const Eigen::Vector3d L = f.landmarks[static_cast<std::size_t>(l)];
+      for (int s = 0; s < o.samples_per_volume / 3; ++s) {
+        const Eigen::Vector3d cn = c + random_offset(2.5);
+        const Eigen::Vector3i p = vx.nearest(L + random_offset(rng.uniform() < 0.4 ? 3.0 : o.landmark_search_mm));
+        if (!vx.inside(p)) continue;
+        features(iv, im, vx, p, o.scales, &cn, row.data());
+        push(lm_x[static_cast<std::size_t>(l)], lm_y[static_cast<std::size_t>(l)],
+             gauss((vx.world(p.cast<double>()) - L).norm(), kLandmarkSigmaMm), nc);
+      }
+    }
+    // Boundary: along the surface normals.
+    const Points3& P = f.la_surface->points();
+    const Points3 N = grid_normals(P, f.la_surface->ures(), f.la_surface->vres());
+    for (int s = 0; s < o.samples_per_volume; ++s) {
+      const auto k = static_cast<Eigen::Index>(rng.uniform_int(0, static_cast<int>(P.rows()) - 1));
+      const double off = rng.uniform() < 0.4 ? rng.uniform(-1.5, 1.5) : rng.uniform(-o.normal_search_mm - 2, o.normal_search_mm + 2);
+      const Eigen::Vector3d x = P.row(k).transpose() + off * N.row(k).transpose();
+      const Eigen::Vector3i p = vx.nearest(x);
+      if (!vx.inside(p)) continue;
+      const Eigen::Vector3d cn = c + random_offset(2.5);
+      features(iv, im, vx, p, o.scales, &cn, row.data());
+      push(bnd_x, bnd_y, gauss(off, kBoundarySigmaMm), nc);
+    }
+  }
+  for (auto& off : m.landmark_offset) off /= static_cast<double>(usable.size());
+  say("position detector (" + std::to_string(pos_x.rows) + " samples)");
+  m.position = make_forest(o);
+  m.position->train(cv::ml::TrainData::create(pos_x, cv::ml::ROW_SAMPLE, pos_y));
+  m.landmarks.resize(kNumLandmarks);
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    say("landmark detector " + std::string(kLandmarkNames[static_cast<std::size_t>(l)]));
+    m.landmarks[static_cast<std::size_t>(l)] = make_forest(o);
+    m.landmarks[static_cast<std::size_t>(l)]->train(
+        cv::ml::TrainData::create(lm_x[static_cast<std::size_t>(l)], cv::ml::ROW_SAMPLE, lm_y[static_cast<std::size_t>(l)]));
+  }
+  say("boundary detector (" + std::to_string(bnd_x.rows) + " samples)");
+  m.boundary = make_forest(o);
+  m.boundary->train(cv::ml::TrainData::create(bnd_x, cv::ml::ROW_SAMPLE, bnd_y));
+  return d;
+}
+
+ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previous, DetectionInfo* info) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Impl& m = *impl_;
+  if (!m.position) throw Error("detector: not trained");
+  if (im.data.size() != im.num_voxels() || im.num_voxels() == 0)
+    throw Error("detector: the volume is empty or its data does not match its size");
+  const IntegralVolume iv(im);
+  const Voxels vx(im);
+  const int nf = m.nf(), nc = nf + kContext;
+  const DetectorOptions& o = m.options;
+
+  // 1. Position.
+  std::vector<Eigen::Vector3d> xs;
+  if (previous) {
+    const Eigen::Vector3d pc = previous->annulus.colwise().mean().transpose();
+    const double r = o.track_search_mm, st = std::max(1.0, vx.voxel_mm);
+    for (double a = -r; a <= r + 1e-9; a += st)
+      for (double b = -r; b <= r + 1e-9; b += st)
+        for (double c = -r; c <= r + 1e-9; c += st) xs.push_back(pc + im.direction * Eigen::Vector3d(a, b, c));
+  } else {
+    const int step = std::max(1, static_cast<int>(std::lround(o.position_step_mm / vx.voxel_mm)));
+    const int margin = o.scales.back();
+    for (int k = margin; k < im.size[2] - margin; k += step)
+      for (int j = margin; j < im.size[1] - margin; j += step)
+        for (int i = margin; i < im.size[0] - margin; i += step) xs.push_back(vx.world(Eigen::Vector3d(i, j, k)));
+  }
+  auto score = [&](const cv::Ptr<cv::ml::RTrees>& f, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d* centre) {
+    const int cols = centre ? nc : nf;
+    cv::Mat X(static_cast<int>(pts.size()), cols, CV_32F, cv::Scalar(0));
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      Eigen::Vector3i p = vx.nearest(pts[i]);
+      for (int a = 0; a < 3; ++a) p[a] = std::clamp(p[a], 0, im.size[a] - 1);
+      features(iv, im, vx, p, o.scales, centre, X.ptr<float>(static_cast<int>(i)));
+    }
+    return predict(f, X);
+  };
+  Eigen::Vector3d centre = best_of(xs, score(m.position, xs, nullptr));
+
+  // 2. Landmarks, each in a box around its expected place; then the centre again from the
+  // mean shape they place, and the landmarks once more from it when it moved.
+  ValveFrame out;
+  out.time_s = im.time_s;
+  auto placing = [&] {
+    Points3 L(static_cast<Eigen::Index>(kPlacingLandmarks.size()), 3);
+    for (std::size_t i = 0; i < kPlacingLandmarks.size(); ++i)
+      L.row(static_cast<Eigen::Index>(i)) = out.landmark(kPlacingLandmarks[i]).transpose();
+    return L;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    const Eigen::Vector3d guess = previous && pass == 0 ? previous->landmarks[static_cast<std::size_t>(l)]
+                                           : Eigen::Vector3d(centre + im.direction * m.landmark_offset[static_cast<std::size_t>(l)]);
+    const double r = previous ? o.track_search_mm : o.landmark_search_mm;
+    const double st = std::max(1.0, vx.voxel_mm) * (previous ? 1.0 : 2.0);
+    std::vector<Eigen::Vector3d> cand;
+    for (double a = -r; a <= r + 1e-9; a += st)
+      for (double b = -r; b <= r + 1e-9; b += st)
+        for (double c = -r; c <= r + 1e-9; c += st) cand.push_back(guess + im.direction * Eigen::Vector3d(a, b, c));
+    Eigen::Vector3d best = best_of(cand, score(m.landmarks[static_cast<std::size_t>(l)], cand, &centre));
+    if (!previous) {  // refine on the voxel grid
+      cand.clear();
+      const double h = std::max(1.0, vx.voxel_mm);
+      for (int a = -2; a <= 2; ++a)
+        for (int b = -2; b <= 2; ++b)
+          for (int c = -2; c <= 2; ++c) cand.push_back(best + im.direction * Eigen::Vector3d(a, b, c) * h);
+      best = best_of(cand, score(m.landmarks[static_cast<std::size_t>(l)], cand, &centre), 4);
+    }
+    out.landmarks[static_cast<std::size_t>(l)] = best;
+    out.landmark_observed[static_cast<std::size_t>(l)] = true;
+  }
+    if (pass == 1 || previous) break;
+    const Points3 placed = m.shape.place_mean(placing());
+    const Eigen::Vector3d c2 = placed.topRows(m.shape.ures()).colwise().mean().transpose();
+    if ((c2 - centre).norm() < 1.0) break;
+    centre = c2;
+  }
+
+  // 3. Surface: placed by the landmarks, refined along the normals, kept in the shape space.
+  const Points3 L = placing();
+  const Similarity place = m.shape.placement(L);
+  const int ures = m.shape.ures(), vres = m.shape.vres();
+  Points3 P = m.shape.place_mean(L);
+  if (previous && previous->la_surface) {
+    const LeafletGrid g = previous->la_surface->ures() == ures && previous->la_surface->vres() == vres
+                              ? *previous->la_surface
+                              : previous->la_surface->resampled(ures, vres);
+    P = m.shape.constrain(g.points(), place);
+  }
+  for (int it = 0; it < o.surface_iterations; ++it) {
+    const double r = o.normal_search_mm * (1.0 - 0.5 * it / std::max(1, o.surface_iterations));
+    const double st = 0.5 * vx.voxel_mm;
+    const int ns = 2 * static_cast<int>(r / st) + 1;
+    const Points3 N = grid_normals(P, ures, vres);
+    std::vector<Eigen::Vector3d> cand;
+    cand.reserve(static_cast<std::size_t>(P.rows()) * static_cast<std::size_t>(ns));
+    for (Eigen::Index k = 0; k < P.rows(); ++k)
+      for (int s = 0; s < ns; ++s)
+        cand.push_back(P.row(k).transpose() + (-r + s * st) * N.row(k).transpose());
+    const std::vector<float> sc = score(m.boundary, cand, &centre);
+    Points3 moved = P;
+    for (Eigen::Index k = 0; k < P.rows(); ++k) {
+      int best = -1;
+      float bs = 0.25f;  // below this, no boundary seen: keep the point
+      for (int s = 0; s < ns; ++s) {
+        const float v = sc[static_cast<std::size_t>(k * ns + s)];
+        if (v > bs) {
+          bs = v;
+          best = s;
+        }
+      }
+      if (best >= 0) moved.row(k) = cand[static_cast<std::size_t>(k * ns + best)].transpose();
+    }
+    P = m.shape.constrain(moved, place);
+  }
+  out.la_surface = LeafletGrid(ures, vres, P);
+  out.annulus = P.topRows(ures);
+  if (info) {
+    info->centre = out.annulus.colwise().mean().transpose();
+    info->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  return out;
+}
+
+std::vector<ValveFrame> ValveDetector::detect_sequence(const std::vector<ImageVolume>& frames,
+                                                       std::vector<DetectionInfo>* info) const {
+  std::vector<ValveFrame> out;
+  if (info) info->clear();
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    DetectionInfo di;
+    out.push_back(detect(frames[f], f ? &out.back() : nullptr, &di));
+    if (info) info->push_back(di);
+  }
+  // Temporal smoothing: each inner frame averaged with its neighbours (1/4, 1/2, 1/4).
+  if (out.size() >= 3) {
+    const std::vector<ValveFrame> raw = out;
+    for (std::size_t f = 1; f + 1 < raw.size(); ++f) {
+      for (int l = 0; l < kNumLandmarks; ++l) {
+        const auto i = static_cast<std::size_t>(l);
+        out[f].landmarks[i] = 0.25 * raw[f - 1].landmarks[i] + 0.5 * raw[f].landmarks[i] + 0.25 * raw[f + 1].landmarks[i];
+      }
+      Points3 P = 0.25 * raw[f - 1].la_surface->points() + 0.5 * raw[f].la_surface->points() +
+                  0.25 * raw[f + 1].la_surface->points();
+      out[f].annulus = P.topRows(raw[f].la_surface->ures());
+      out[f].la_surface = LeafletGrid(raw[f].la_surface->ures(), raw[f].la_surface->vres(), P);
+    }
+  }
+  return out;
+}
+
+void ValveDetector::save(const std::filesystem::path& path,
+                         const std::vector<std::pair<std::string, std::string>>& provenance) const {
+  const Impl& m = *impl_;
+  if (!m.position) throw Error("detector: not trained");
+  std::string ext = path.string();
+  const bool ok_ext = ext.size() > 4 && (ext.ends_with(".yml") || ext.ends_with(".yml.gz") || ext.ends_with(".yaml"));
+  if (!ok_ext) throw Error(path.string() + ": a detector model is written as .yml or .yml.gz");
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    // FileStorage picks the format from the name: give the temporary the same ending.
+    const std::string name = tmp.string() + (ext.ends_with(".gz") ? ".yml.gz" : ".yml");
+    {
+      cv::FileStorage fs(name, cv::FileStorage::WRITE);
+      if (!fs.isOpened()) throw Error(path.string() + ": cannot be written");
+      fs << "format" << "mvtwin-valve-detector" << "format_version" << 1;
+      fs << "provenance" << "{";
+      for (const auto& [k, v] : provenance) fs << k << v;
+      fs << "}";
+      fs << "scales" << m.options.scales;
+      fs << "options" << "{" << "trees" << m.options.trees << "max_depth" << m.options.max_depth
+         << "samples_per_volume" << m.options.samples_per_volume << "position_step_mm" << m.options.position_step_mm
+         << "landmark_search_mm" << m.options.landmark_search_mm << "track_search_mm" << m.options.track_search_mm
+         << "normal_search_mm" << m.options.normal_search_mm << "surface_iterations" << m.options.surface_iterations
+         << "seed" << static_cast<double>(m.options.seed) << "}";
+      fs << "shape_model" << m.shape.serialize();
+      std::vector<double> offs;
+      for (const auto& v : m.landmark_offset) offs.insert(offs.end(), v.data(), v.data() + 3);
+      fs << "landmark_offset" << offs;
+      fs << "position" << "{";
+      m.position->write(fs);
+      fs << "}";
+      fs << "boundary" << "{";
+      m.boundary->write(fs);
+      fs << "}";
+      for (int l = 0; l < kNumLandmarks; ++l) {
+        fs << ("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])) << "{";
+        m.landmarks[static_cast<std::size_t>(l)]->write(fs);
+        fs << "}";
+      }
+    }
+    std::filesystem::rename(name, tmp);
+  });
+}
+
+ValveDetector ValveDetector::load(const std::filesystem::path& path) {
+  const std::string what = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw Error(what + ": no such file");
+  cv::FileStorage fs;
+  try {
+    fs.open(what, cv::FileStorage::READ);
+  } catch (const cv::Exception& e) {
+    throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) + ")");
+  }
+  if (!fs.isOpened()) throw Error(what + ": not a readable detector model");
+  if (fs["format"].empty() || static_cast<std::string>(fs["format"]) != "mvtwin-valve-detector")
+    throw Error(what + ": not an mvtwin valve detector model");
+  if (static_cast<int>(fs["format_version"]) != 1)
+    throw Error(what + ": detector model format version " + std::to_string(static_cast<int>(fs["format_version"])) +
+                " is not supported (1)");
+  ValveDetector d;
+  Impl& m = *d.impl_;
+  fs["scales"] >> m.options.scales;
+  const cv::FileNode on = fs["options"];
+  m.options.trees = static_cast<int>(on["trees"]);
+  m.options.max_depth = static_cast<int>(on["max_depth"]);
+  m.options.samples_per_volume = static_cast<int>(on["samples_per_volume"]);
+  m.options.position_step_mm = static_cast<double>(on["position_step_mm"]);
+  m.options.landmark_search_mm = static_cast<double>(on["landmark_search_mm"]);
+  m.options.track_search_mm = static_cast<double>(on["track_search_mm"]);
+  m.options.normal_search_mm = static_cast<double>(on["normal_search_mm"]);
+  m.options.surface_iterations = static_cast<int>(on["surface_iterations"]);
+  m.options.seed = static_cast<std::uint64_t>(static_cast<double>(on["seed"]));
+  if (const std::string e = m.options.invalid(); !e.empty()) throw Error(what + ": bad detector options: " + e);
+  std::vector<double> shape, offs;
+  fs["shape_model"] >> shape;
+  m.shape = ShapeModel::deserialize(shape);
+  fs["landmark_offset"] >> offs;
+  if (offs.size() != 3 * kNumLandmarks) throw Error(what + ": bad landmark offsets");
+  for (int l = 0; l < kNumLandmarks; ++l)
+    m.landmark_offset.emplace_back(offs[3 * l], offs[3 * l + 1], offs[3 * l + 2]);
+  auto forest = [&](const std::string& name) {
+    cv::Ptr<cv::ml::RTrees> f = cv::ml::RTrees::create();
+    if (fs[name].empty()) throw Error(what + ": the model lacks the '" + name + "' detector");
+    f->read(fs[name]);
+    if (f->empty() || !f->isTrained()) throw Error(what + ": the '" + name + "' detector is empty");
+    return f;
+  };
+  m.position = forest("position");
+  m.boundary = forest("boundary");
+  for (int l = 0; l < kNumLandmarks; ++l)
+    m.landmarks.push_back(forest("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])));
+  return d;
+}
+
+}  // namespace mvtwin::detection
