@@ -133,6 +133,9 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   auto all_frames = std::make_shared<bool>(false);
   auto co = std::make_shared<inverse::CalibrationOptions>();
   auto sets = std::make_shared<std::vector<std::string>>();
+  auto use_detected = std::make_shared<bool>(false);
+  cmd->add_flag("--use-detected", *use_detected,
+                "use the sequence detected from the images (mvtwin detect) instead of the stored one");
   cmd->add_option("FILE", *file, "patient file with an observed closed valve")->required();
   cmd->add_option("--out", *out, "calibration file (HDF5); a .json summary is written beside it")
       ->required();
@@ -159,7 +162,7 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
       if (*no_scan) co->restlength_scan.clear();
-      const Patient p = read_patient(*file, false);
+      const Patient p = read_patient_for_run(*file, *use_detected);
       refuse_overwrite_path(*out, *force);
       forward::ClosureOptions o;
       ValveParameters start;  // the defaults: never the virtual patient's hidden values

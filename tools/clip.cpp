@@ -110,6 +110,9 @@ void register_clip(CLI::App& app, Context& ctx) {
   auto force = std::make_shared<bool>(false);
   auto jobs = std::make_shared<int>(2);
   auto sets = std::make_shared<std::vector<std::string>>();
+  auto use_detected = std::make_shared<bool>(false);
+  cmd->add_flag("--use-detected", *use_detected,
+                "use the sequence detected from the images (mvtwin detect) instead of the stored one");
   cmd->add_option("FILE", *file, "patient file (the pre-operative anatomy)")->required();
   cmd->add_option("--params", *params, "calibration file (mvtwin calibrate)");
   cmd->add_option("--at", *at, "clip site(s): position,depth[;position,depth]");
@@ -125,7 +128,7 @@ void register_clip(CLI::App& app, Context& ctx) {
     ctx.run = [=, &ctx] {
       if (at->empty() == !*suggest)
         throw Error("clip: give either --at SITES or --suggest");
-      const Patient p = read_patient(*file, false);
+      const Patient p = read_patient_for_run(*file, *use_detected);
       ValveParameters par;
       forward::ClosureOptions o;
       std::string source = "default parameters (uncalibrated)";

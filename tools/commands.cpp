@@ -175,6 +175,17 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
 
 void refuse_overwrite_path(const fs::path& p, bool force) { refuse_overwrite(p, force); }
 
+Patient read_patient_for_run(const fs::path& path, bool use_detected) {
+  Patient p = read_patient(path, false);
+  if (use_detected) {
+    if (!p.detected)
+      throw Error(path.string() + " has no detected sequence (run mvtwin detect first)");
+    p.sequence = *p.detected;
+    p.provenance.source.append("; sequence detected from images (").append(p.detected_by).append(")");
+  }
+  return p;
+}
+
 void register_commands(CLI::App& app, Context& ctx) {
   // ---- phantom ---------------------------------------------------------------------------------
   {
@@ -435,6 +446,8 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto opts = std::make_shared<forward::ClosureOptions>();
     auto newton = std::make_shared<int>(1);
     cmd->add_option("--out", *out, "result file (HDF5)");
+    auto use_detected = std::make_shared<bool>(false);
+    cmd->add_flag("--use-detected", *use_detected, "simulate the sequence detected from the images (mvtwin detect)");
     cmd->add_flag("--force", *force, "replace an existing result file");
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--vtk", *dir, "directory for the ParaView series");
@@ -455,7 +468,7 @@ void register_commands(CLI::App& app, Context& ctx) {
                     "--set peak_pressure_mmhg=100");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
-        const Patient p = read_patient(*file, false);
+        const Patient p = read_patient_for_run(*file, *use_detected);
         forward::ClosureOptions o = *opts;
         if (!forward::parse_linear_solver(*solver, &o.solver))
           throw Error("unknown solver '" + *solver + "'");

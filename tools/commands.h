@@ -5,6 +5,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "mvtwin/core/patient.h"
+
 namespace mvtwin::tools {
 
 /// What the chosen subcommand will run, and the command line recorded in provenance.
@@ -22,8 +24,13 @@ void register_calibrate(CLI::App& app, Context& ctx);
 void register_bench_calibrate(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).
 void register_clip(CLI::App& app, Context& ctx);
+/// mvtwin train-detector and mvtwin detect (tools/detect.cpp).
+void register_detect(CLI::App& app, Context& ctx);
 /// mvtwin render-tee (tools/render_tee.cpp).
 void register_render_tee(CLI::App& app, Context& ctx);
+/// Reads a patient file; with `use_detected` its detected sequence (mvtwin detect) replaces the
+/// stored one for this run (the file is not changed). Throws mvtwin::Error when there is none.
+Patient read_patient_for_run(const std::filesystem::path& path, bool use_detected);
 /// Throws mvtwin::Error when `path` exists and `force` is not set.
 void refuse_overwrite_path(const std::filesystem::path& path, bool force);
 

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   mvtwin::tools::register_calibrate(app, ctx);
   mvtwin::tools::register_clip(app, ctx);
   mvtwin::tools::register_render_tee(app, ctx);
+  mvtwin::tools::register_detect(app, ctx);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

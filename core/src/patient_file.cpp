@@ -298,6 +298,8 @@ void write_patient(const std::filesystem::path& path, const Patient& patient) {
     throw Error(path.string() + ": patient '" + patient.id +
                 "' has a virtual ground truth but is not marked synthetic");
   }
+  if (patient.detected)
+    patient.detected->validate((path.string() + ": patient '" + patient.id + "', detected sequence").c_str());
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::Location root = h5::Location::create_file(tmp);
     root.attr("format", std::string(kPatientFormat));
@@ -319,6 +321,11 @@ void write_patient(const std::filesystem::path& path, const Patient& patient) {
     write_sequence(root, patient.sequence);
     write_images(root, patient.images);
     if (patient.truth) write_truth(root, *patient.truth);
+    if (patient.detected) {
+      const h5::Location g = root.create_group("detected");
+      g.attr("detected_by", patient.detected_by);
+      write_sequence(g, *patient.detected);
+    }
   });
 }
 
@@ -344,6 +351,11 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
   p.provenance.source = root.attr_string("source");
   p.sequence = read_sequence(root);
   if (with_images) p.images = read_images(root);
+  if (root.exists("detected")) {
+    const h5::Location g = root.open_group("detected");
+    p.detected = read_sequence(g);
+    p.detected_by = g.has_attr("detected_by") ? g.attr_string("detected_by") : "";
+  }
   if (root.exists("ground_truth")) {
     if (!p.synthetic) root.fail("ground_truth", "present but the file is not marked synthetic");
     p.truth = read_truth(root);

@@ -61,6 +61,10 @@ struct Patient {
   std::optional<VirtualTruth> truth;
   /// Optional image volumes (one per frame for 3D+t).
   std::vector<ImageVolume> images;
+  /// The valve as detected in `images` (mvtwin detect), kept beside `sequence` (for a virtual
+  /// patient: the ground truth), never over it; `detected_by` names the model and its run.
+  std::optional<ValveSequence> detected;
+  std::string detected_by;
 };
 
 }  // namespace mvtwin
