@@ -122,6 +122,37 @@ TEST_F(PatientFile, RoundTripKeepsEverything) {
   EXPECT_TRUE(q.images[0].spacing.isApprox(im.spacing));
 }
 
+TEST_F(PatientFile, DetectedSequenceIsKeptBesideTheStoredOne) {
+  const fs::path p = dir_ / "d.h5";
+  write_patient(p, patient_);
+  EXPECT_FALSE(read_patient(p).detected) << "no detection until one is written";
+  // A detection that differs from the stored sequence: both must come back, unmixed.
+  ValveSequence det = patient_.sequence.resampled(16, 6);
+  for (auto& f : det.frames) {
+    if (f.la_surface) f.la_surface->points().array() += 1.0;
+    f.annulus = f.la_surface ? Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>(f.la_surface->points().topRows(16)) : f.annulus;
+  }
+  patient_.detected = det;
+  patient_.detected_by = "model m.yml.gz";
+  write_patient(p, patient_);
+  const Patient q = read_patient(p);
+  ASSERT_TRUE(q.detected);
+  EXPECT_EQ(q.detected_by, "model m.yml.gz");
+  EXPECT_EQ(q.detected->ures, 16);
+  EXPECT_EQ(q.sequence.ures, patient_.sequence.ures) << "the stored sequence is untouched";
+  for (int f = 0; f < det.num_frames(); ++f) {
+    if (!det.frames[f].la_surface) continue;
+    EXPECT_EQ(q.detected->frames[f].la_surface->points(), det.frames[f].la_surface->points());
+    EXPECT_EQ(q.sequence.frames[f].la_surface->points(), patient_.sequence.frames[f].la_surface->points());
+  }
+  // A bad detection is refused before anything is written.
+  const auto size = fs::file_size(p);
+  patient_.detected->frames[0].annulus(0, 0) = std::nan("");
+  EXPECT_THROW(write_patient(p, patient_), Error);
+  EXPECT_EQ(fs::file_size(p), size);
+  EXPECT_TRUE(read_patient(p).detected);
+}
+
 TEST_F(PatientFile, ClearErrorsForBadFiles) {
   EXPECT_NE(read_error(dir_ / "absent.h5").find("no such file"), std::string::npos);
   { std::ofstream(dir_ / "text.h5") << "this is not HDF5\n"; }
