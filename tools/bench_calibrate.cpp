@@ -69,7 +69,7 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
                   "mvtwin phantom --simulate-closure)");
   cmd->add_option("--noise", *noise, "observation noise SD, mm")->default_val(0.5);
   cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2);
-  cmd->add_option("--max-sims", co->max_simulations, "simulation budget per fit")->default_val(80);
+  cmd->add_option("--max-sims", co->max_simulations, "simulation budget per fit")->default_val(50);
   auto no_scan = std::make_shared<bool>(false);
   cmd->add_option("--scan", co->restlength_scan,
                   "common rest-length offsets simulated before the optimizer starts")

@@ -144,7 +144,7 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   cmd->add_option("--method", co->method, "bobyqa | cobyla | neldermead | sbplx | ceres")
       ->default_val("bobyqa");
   cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
-  cmd->add_option("--max-sims", co->max_simulations, "simulation budget")->default_val(80)
+  cmd->add_option("--max-sims", co->max_simulations, "simulation budget")->default_val(50)
       ->check(CLI::Range(1, 100000));
   cmd->add_option("--noise-mm", co->noise_mm,
                   "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
