@@ -68,19 +68,11 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
                   "name=value for the observation model (default: the fine model of "
                   "mvtwin phantom --simulate-closure)");
   cmd->add_option("--noise", *noise, "observation noise SD, mm")->default_val(0.5);
-  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2);
-  cmd->add_option("--max-sims", co->max_simulations, "simulation budget per fit")->default_val(50);
-  auto no_scan = std::make_shared<bool>(false);
-  cmd->add_option("--scan", co->restlength_scan,
-                  "common rest-length offsets simulated before the optimizer starts")
-      ->delimiter(',')
-      ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
-  cmd->add_flag("--no-scan", *no_scan, "start the optimizer at the defaults, without the scan");
+  add_fit_options(cmd, co.get());
   cmd->add_flag("--observe-only", *observe_only,
                 "only simulate the observed closures into --cache (--jobs patients at once)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      if (*no_scan) co->restlength_scan.clear();
       forward::ClosureOptions model;
       ValveParameters defaults;
       for (const auto& a : *sets) forward::apply_setting(a, &model, &defaults);

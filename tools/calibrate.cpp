@@ -116,6 +116,20 @@ void print_calibration(const CalibrationRecord& c, std::ostream& os) {
            << ")\n";
 }
 
+void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
+  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
+  cmd->add_option("--max-sims", co->max_simulations,
+                  "simulation budget (start, scan and optimizer; the uncertainty adds one per parameter)")
+      ->default_val(co->max_simulations)
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--scan", co->restlength_scan,
+                  "common rest-length offsets simulated before the optimizer starts")
+      ->delimiter(',')
+      ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
+  cmd->add_flag_callback("--no-scan", [co] { co->restlength_scan.clear(); },
+                         "start the optimizer at the defaults, without the scan");
+}
+
 void register_calibrate(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("calibrate", "Fit chordae, stiffness and pressure to a patient");
   cmd->footer(
@@ -143,25 +157,16 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   cmd->add_option("--fit", *fit, "what to fit")->default_val("restlength,stiffness,pressure");
   cmd->add_option("--method", co->method, "bobyqa | cobyla | neldermead | sbplx | ceres")
       ->default_val("bobyqa");
-  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
-  cmd->add_option("--max-sims", co->max_simulations, "simulation budget")->default_val(50)
-      ->check(CLI::Range(1, 100000));
   cmd->add_option("--noise-mm", co->noise_mm,
                   "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
   cmd->add_flag("--all-frames", *all_frames,
                 "compare every observed closing frame, not only the first closed one");
-  auto no_scan = std::make_shared<bool>(false);
-  cmd->add_option("--scan", co->restlength_scan,
-                  "common rest-length offsets simulated before the optimizer starts")
-      ->delimiter(',')
-      ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
-  cmd->add_flag("--no-scan", *no_scan, "start the optimizer at the defaults, without the scan");
+  add_fit_options(cmd, co.get());
   cmd->add_option("--vtk", *vtk, "directory for the valve before and after (ParaView)");
   cmd->add_option("--set", *sets,
                   "name=value for the calibration model (repeatable), e.g. --set ures=20");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      if (*no_scan) co->restlength_scan.clear();
       const Patient p = read_patient_for_run(*file, *use_detected);
       refuse_overwrite_path(*out, *force);
       forward::ClosureOptions o;

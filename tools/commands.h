@@ -7,6 +7,10 @@
 
 #include "mvtwin/core/patient.h"
 
+namespace mvtwin::inverse {
+struct CalibrationOptions;
+}
+
 namespace mvtwin::tools {
 
 /// What the chosen subcommand will run, and the command line recorded in provenance.
@@ -20,6 +24,8 @@ void register_commands(CLI::App& app, Context& ctx);
 void register_bench(CLI::App& app, Context& ctx);
 /// mvtwin calibrate (tools/calibrate.cpp).
 void register_calibrate(CLI::App& app, Context& ctx);
+/// The fit options calibrate and bench calibrate share: --jobs, --max-sims, --scan, --no-scan.
+void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* options);
 /// mvtwin bench calibrate (tools/bench_calibrate.cpp), under the bench command.
 void register_bench_calibrate(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).

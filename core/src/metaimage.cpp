@@ -22,16 +22,8 @@ using raw::VoxelType;
 
 const Eigen::Vector3d kLpsToRas(-1, -1, 1);
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  const std::size_t a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
-}
+using raw::lower;
+using raw::trim;
 
 VoxelType met_type(const std::string& t, const std::string& what) {
   const std::string u = trim(t);
@@ -60,11 +52,7 @@ bool truth(const std::string& s) {
   return t == "true" || t == "1";
 }
 
-std::string fmt(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
+std::string fmt(double v) { return raw::format_number(v); }
 
 }  // namespace
 

@@ -21,16 +21,8 @@ namespace {
 namespace fs = std::filesystem;
 using raw::VoxelType;
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  const std::size_t a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
-}
+using raw::lower;
+using raw::trim;
 
 VoxelType nrrd_type(const std::string& name, const std::string& what) {
   const std::string t = lower(trim(name));
@@ -94,11 +86,7 @@ Eigen::Vector3d space_to_ras(const std::string& space, const std::string& what) 
   throw Error(what + ": unsupported NRRD space '" + trim(space) + "' (RAS, LPS or LAS)");
 }
 
-std::string fmt(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
+std::string fmt(double v) { return raw::format_number(v); }
 
 std::string fmt(const Eigen::Vector3d& v) {
   std::string s = "(";

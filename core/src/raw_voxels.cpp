@@ -2,7 +2,10 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <bit>
+#include <cctype>
+#include <cstdio>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -117,6 +120,23 @@ std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian
     case VoxelType::kF64: convert<double>(bytes, swap, n, &out); break;
   }
   return out;
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string trim(const std::string& s) {
+  const std::size_t a = s.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
+}
+
+std::string format_number(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
 }
 
 std::vector<std::string> words(const std::string& s) {

@@ -26,6 +26,13 @@ std::string deflate(const char* data, std::size_t bytes, bool gzip);
 /// float; `big_endian` for the file's byte order.
 std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian, std::size_t count);
 
+/// Lower-case copy (ASCII).
+std::string lower(std::string s);
+/// `s` without leading and trailing blanks (spaces, tabs, carriage returns).
+std::string trim(const std::string& s);
+/// Shortest text that reads back as the same double (%.17g).
+std::string format_number(double v);
+
 /// Splits on whitespace.
 std::vector<std::string> words(const std::string& s);
 

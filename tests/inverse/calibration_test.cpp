@@ -35,6 +35,20 @@ ObjectiveOptions small_model() {
   return o;
 }
 
+/// The observation made by the calibration model itself, without noise (deliberately the
+/// inverse crime that calibrations must avoid), so the hidden values are the exact minimum.
+void observe_with_the_calibration_model(Patient* p) {
+  forward::VirtualClosureOptions vo;
+  vo.simulation = small_model().simulation;
+  vo.noise_mm = 0.0;
+  forward::simulate_observed_closure(p, vo);
+}
+
+std::string marginal_restlengths() {
+  return "restlength_factor_" + std::string(kChordaeGroupNames[0]) + ",restlength_factor_" +
+         std::string(kChordaeGroupNames[2]);
+}
+
 TEST(ClosureObjective, NeedsAnObservedClosedSurface) {
   const Patient p = make_virtual_patient(3);  // closed frames not simulated
   EXPECT_THROW(ClosureObjective(p, ParameterSpace("restlength", ValveParameters{}), small_model()),
@@ -79,12 +93,8 @@ TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
   // noise (deliberately the inverse crime that calibrations must avoid), so the hidden values
   // are the exact minimum.
   Patient p = make_virtual_patient(3);
-  forward::VirtualClosureOptions vo;
-  vo.simulation = small_model().simulation;
-  vo.noise_mm = 0.0;
-  forward::simulate_observed_closure(&p, vo);
-  const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) +
-                               ",restlength_factor_" + std::string(kChordaeGroupNames[2]);
+  observe_with_the_calibration_model(&p);
+  const std::string marginal = marginal_restlengths();
   ClosureObjective obj(p, ParameterSpace(marginal, ValveParameters{}), small_model());
   CalibrationOptions co;
   co.max_simulations = 30;
@@ -114,12 +124,8 @@ TEST(Calibration, RestLengthScanReachesElongatedChordae) {
   Patient p = make_virtual_patient(11, po);
   p.truth->parameters.restlength_factor[0] = 1.38;  // pinned: far from the defaults
   p.truth->parameters.restlength_factor[2] = 1.32;
-  forward::VirtualClosureOptions vo;
-  vo.simulation = small_model().simulation;
-  vo.noise_mm = 0.0;
-  forward::simulate_observed_closure(&p, vo);
-  const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) +
-                               ",restlength_factor_" + std::string(kChordaeGroupNames[2]);
+  observe_with_the_calibration_model(&p);
+  const std::string marginal = marginal_restlengths();
   ClosureObjective obj(p, ParameterSpace(marginal + ",peak_pressure", ValveParameters{}), small_model());
   const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
   CalibrationOptions co;
