@@ -9,7 +9,7 @@ clip = json.load(open(f"{out}/clipped.json"))
 tag = " [SYNTHETIC]" if cal.get("synthetic") else ""
 print(f"Report for {cal['patient_id']}{tag}")
 print(f"  calibration ({cal['method']}): error {cal['error_before_mm']:.3f} -> "
-      f"{cal['error_after_mm']:.3f} mm (observation noise {cal['noise_mm']:.2f} mm), "
+      f"{cal['error_after_mm']:.3f} mm (noise SD for the uncertainty {cal['noise_mm']:.2f} mm), "
       f"{cal['sims']} simulations ({cal['failed_sims']} failed), {cal['wall_s']:.0f} s")
 for p in cal["parameters"]:
     truth = "" if p["truth"] is None else f"  truth {p['truth']:.3f}  error {p['error']:+.3f}"
