@@ -32,13 +32,13 @@ std::vector<fs::path> patient_files(const fs::path& dir) {
   return out;
 }
 
-}  // namespace
-
 /// Mean symmetric point-to-mesh distance of two valve frames' LA surfaces, mm (NaN without both).
 double frame_surface_error(const ValveFrame& a, const ValveFrame& b) {
   if (!a.la_surface || !b.la_surface) return std::numeric_limits<double>::quiet_NaN();
   return symmetric_surface_distance(a.la_surface->triangulate(), b.la_surface->triangulate()).symmetric.mean;
 }
+
+}  // namespace
 
 void register_detect(CLI::App& app, Context& ctx) {
   {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -18,6 +19,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/image_io.h"
 #include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
 #include "mvtwin/detection/tee_renderer.h"
 
 namespace mvtwin::tools {
@@ -116,6 +118,14 @@ void register_render_tee(CLI::App& app, Context& ctx) {
       std::cerr << "\n";
       std::cout << "  " << s << " s (" << s / p.sequence.num_frames() << " s per volume)\n";
       p.images = volumes;
+      // The file says what made its images (the patient's own provenance stays as it was).
+      std::ostringstream made;
+      made << "; images: synthetic TEE by '" << ctx.command_line << "' (voxel_mm=" << o->voxel_mm
+           << " noise=" << o->noise << " speckle=" << o->speckle << " dropout=" << o->dropout_fraction
+           << " attenuation_db_per_mm=" << o->attenuation_db_per_mm
+           << " probe_jitter_deg=" << o->probe_jitter_deg << " seed=" << o->seed << ", mvtwin "
+           << kVersion << ")";
+      p.provenance.source += made.str();
       write_patient(dest, p);
       std::cout << "wrote " << volumes.size() << " volumes into " << dest.string() << " (/images)\n";
       if (!exp->empty()) {
@@ -145,7 +155,6 @@ void register_render_tee(CLI::App& app, Context& ctx) {
         }
         std::cout << "wrote PNG slices to " << *png << "\n";
       }
-      (void)ctx;
       return 0;
     };
   });

@@ -169,7 +169,11 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
   Rng rng(o.seed);
   auto gauss = [](double x, double s) { return static_cast<float>(std::exp(-0.5 * x * x / (s * s))); };
   cv::Mat pos_x(0, nf, CV_32F), pos_y(0, 1, CV_32F), bnd_x(0, nc, CV_32F), bnd_y(0, 1, CV_32F);
-  std::vector<cv::Mat> lm_x(kNumLandmarks, cv::Mat(0, nc, CV_32F)), lm_y(kNumLandmarks, cv::Mat(0, 1, CV_32F));
+  std::vector<cv::Mat> lm_x, lm_y;  // one (not shared) matrix per landmark
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    lm_x.emplace_back(0, nc, CV_32F);
+    lm_y.emplace_back(0, 1, CV_32F);
+  }
   m.landmark_offset.assign(kNumLandmarks, Eigen::Vector3d::Zero());
   std::vector<float> row(static_cast<std::size_t>(nc));
   auto push = [&](cv::Mat& X, cv::Mat& Y, float y, int cols) {
@@ -394,8 +398,8 @@ void ValveDetector::save(const std::filesystem::path& path,
                          const std::vector<std::pair<std::string, std::string>>& provenance) const {
   const Impl& m = *impl_;
   if (!m.position) throw Error("detector: not trained");
-  std::string ext = path.string();
-  const bool ok_ext = ext.size() > 4 && (ext.ends_with(".yml") || ext.ends_with(".yml.gz") || ext.ends_with(".yaml"));
+  const std::string ext = path.string();
+  const bool ok_ext = ext.ends_with(".yml") || ext.ends_with(".yml.gz") || ext.ends_with(".yaml");
   if (!ok_ext) throw Error(path.string() + ": a detector model is written as .yml or .yml.gz");
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     // FileStorage picks the format from the name: give the temporary the same ending.

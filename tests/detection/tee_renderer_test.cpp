@@ -61,7 +61,7 @@ TEST(TeeRenderer, LeafletsAreBrightOnDarkBloodAndTheGeometryIsTheProbes) {
   EXPECT_GT(leaflet, around + 60.0) << "leaflet " << leaflet << " vs surroundings " << around;
 }
 
-TEST(TeeRenderer, SameSeedSameVolumeAndNoiseSettingsMatter) {
+TEST(TeeRenderer, SameSeedSameVolumeAnotherSeedAnother) {
   const Patient p = make_virtual_patient(3);
   TeeRenderOptions o = small();
   const TeeGeometry g = tee_geometry(p.sequence, o);
