@@ -352,6 +352,7 @@ int run_stability(const Context& ctx, const std::string& json_path, int runs, un
 void register_bench(CLI::App& app, Context& ctx) {
   auto* bench = app.add_subcommand("bench", "Benchmarks: time and the error it costs");
   register_bench_calibrate(*bench, ctx);
+  register_bench_detect(*bench, ctx);
   bench->require_subcommand(1);
 
   // ---- bench closure ----------------------------------------------------------------------

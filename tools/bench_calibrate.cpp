@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "jobs.h"
 #include "output_files.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
@@ -171,17 +172,13 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
       };
       // The cache key holds the observation model and the noise, so that a changed --observe-set
       // or --noise never reuses an observation made otherwise.
-      std::uint64_t key = 1469598103934665603ull;  // FNV-1a
       std::string description = "noise=" + std::to_string(*noise);
       for (const auto& [name, value] : forward::describe_options(vo.simulation))
         description += " " + name + "=" + value;
-      for (char c : description) key = (key ^ static_cast<unsigned char>(c)) * 1099511628211ull;
-      char key_hex[17];
-      std::snprintf(key_hex, sizeof key_hex, "%016llx", static_cast<unsigned long long>(key));
+      const std::string key = cache_key(description);
       auto cache_path = [&](std::uint64_t ps) {
         return cache->empty() ? fs::path()
-                              : fs::path(*cache) / ("observed_" + std::to_string(ps) + "_" +
-                                                    std::string(key_hex, 8) + ".h5");
+                              : fs::path(*cache) / ("observed_" + std::to_string(ps) + "_" + key + ".h5");
       };
       // A patient's observed closure (the observation model plus noise); throws mvtwin::Error.
       auto observe_patient = [&](int i) {
@@ -200,39 +197,32 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
         std::vector<int> todo;
         for (int i = 0; i < *n; ++i)
           if (!fs::exists(cache_path(patient_seed(i)))) todo.push_back(i);
-        std::atomic<std::size_t> next{0};
         std::mutex out;
-        auto worker = [&] {
-          for (std::size_t k; (k = next++) < todo.size();) {
-            const int i = todo[k];
-            const std::uint64_t ps = patient_seed(i);
-            const auto t0 = std::chrono::steady_clock::now();
-            {
-              std::lock_guard<std::mutex> lock(out);
-              std::cout << "patient " << i + 1 << "/" << *n << " ("
-                        << pathology_name(static_cast<Pathology>(i % kNumPathologies))
-                        << "): simulating its observed closure ..." << std::endl;
-            }
-            try {
-              const Patient p = observe_patient(i);
-              const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-              std::lock_guard<std::mutex> lock(out);  // also serializes HDF5 (not built thread-safe)
-              write_patient(cache_path(ps), p);
-              observe_seconds[i] = s;
-              std::cout << "patient " << i + 1 << "/" << *n << ": observed in " << s << " s -> "
-                        << cache_path(ps).string() << std::endl;
-            } catch (const Error& e) {
-              std::lock_guard<std::mutex> lock(out);
-              unobservable[i] = e.what();
-              std::cout << "patient " << i + 1 << "/" << *n << ": no observation (" << e.what()
-                        << "); the fits will skip it" << std::endl;
-            }
+        run_jobs(todo.size(), co->jobs, [&](std::size_t k) {
+          const int i = todo[k];
+          const std::uint64_t ps = patient_seed(i);
+          const auto t0 = std::chrono::steady_clock::now();
+          {
+            std::lock_guard<std::mutex> lock(out);
+            std::cout << "patient " << i + 1 << "/" << *n << " ("
+                      << pathology_name(static_cast<Pathology>(i % kNumPathologies))
+                      << "): simulating its observed closure ..." << std::endl;
           }
-        };
-        std::vector<std::thread> pool;
-        const int nt = std::max(1, std::min<int>(co->jobs, static_cast<int>(todo.size())));
-        for (int t = 0; t < nt; ++t) pool.emplace_back(worker);
-        for (auto& t : pool) t.join();
+          try {
+            const Patient p = observe_patient(i);
+            const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            std::lock_guard<std::mutex> lock(out);  // also serializes HDF5 (not built thread-safe)
+            write_patient(cache_path(ps), p);
+            observe_seconds[i] = s;
+            std::cout << "patient " << i + 1 << "/" << *n << ": observed in " << s << " s -> "
+                      << cache_path(ps).string() << std::endl;
+          } catch (const Error& e) {
+            std::lock_guard<std::mutex> lock(out);
+            unobservable[i] = e.what();
+            std::cout << "patient " << i + 1 << "/" << *n << ": no observation (" << e.what()
+                      << "); the fits will skip it" << std::endl;
+          }
+        });
       } else if (*observe_only) {
         throw Error("bench calibrate: --observe-only needs --cache DIR");
       }

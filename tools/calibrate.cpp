@@ -197,8 +197,33 @@ void register_calibrate(CLI::App& app, Context& ctx) {
       rec.provenance.created_utc = utc_now_iso8601();
       write_calibration_file(*out, rec);
       const fs::path js = fs::path(*out).replace_extension(".json");
-      write_json_file(js, calibration_json(rec));
+      nlohmann::json summary = calibration_json(rec);
       print_calibration(rec, std::cout);
+      if (*use_detected) {
+        // The model built from the detected anatomy, before and after, against the closing
+        // surfaces stored in the file (for a virtual patient: its truth).
+        const Patient stored = read_patient(*file, false);
+        if (stored.sequence.num_frames() == p.sequence.num_frames()) {
+          Patient check = p;
+          int compared = 0;
+          for (int f = std::max(0, p.sequence.end_diastole + 1); f < p.sequence.num_frames(); ++f) {
+            const auto i = static_cast<std::size_t>(f);
+            check.sequence.frames[i].la_surface = stored.sequence.frames[i].la_surface;
+            compared += stored.sequence.frames[i].la_surface ? 1 : 0;
+          }
+          if (compared > 0) {
+            inverse::ClosureObjective against(check, objective.space(), oo);
+            const inverse::Evaluation b = against.evaluate(r.start), a = against.evaluate(r.fitted);
+            if (a.ok && b.ok) {
+              std::printf("  against the stored valve%s: %.3f -> %.3f mm\n",
+                          p.synthetic ? " (the virtual patient's truth)" : "", b.mean_mm, a.mean_mm);
+              summary["stored_valve_error_before_mm"] = b.mean_mm;
+              summary["stored_valve_error_after_mm"] = a.mean_mm;
+            }
+          }
+        }
+      }
+      write_json_file(js, summary);
       std::cout << "wrote " << *out << " and " << js.string() << "\n";
       if (!vtk->empty()) {
         for (const auto& [name, x] : {std::pair{"before", r.start}, std::pair{"after", r.fitted}}) {

@@ -114,7 +114,11 @@ void register_clip(CLI::App& app, Context& ctx) {
   cmd->add_flag("--use-detected", *use_detected,
                 "use the sequence detected from the images (mvtwin detect) instead of the stored one");
   cmd->add_option("FILE", *file, "patient file (the pre-operative anatomy)")->required();
-  cmd->add_option("--params", *params, "calibration file (mvtwin calibrate)");
+  auto true_params = std::make_shared<bool>(false);
+  auto* params_opt = cmd->add_option("--params", *params, "calibration file (mvtwin calibrate)");
+  cmd->add_flag("--true-params", *true_params,
+                "a virtual patient's hidden parameters (synthetic only: what a calibration's error costs)")
+      ->excludes(params_opt);
   cmd->add_option("--at", *at, "clip site(s): position,depth[;position,depth]");
   cmd->add_option("--out", *out, "result of the clipped closure (simulation file; a .json "
                                  "summary is written beside it)");
@@ -140,6 +144,12 @@ void register_clip(CLI::App& app, Context& ctx) {
         par = c.parameters;
         o = options_of(c);
         source = "calibrated parameters from " + *params;
+      }
+      if (*true_params) {
+        if (!p.synthetic || !p.truth)
+          throw Error(*file + ": --true-params needs a virtual patient (it holds no hidden parameters)");
+        par = p.truth->parameters;
+        source = "the virtual patient's hidden (true) parameters";
       }
       for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
       if (!out->empty()) {

@@ -28,6 +28,8 @@ void register_calibrate(CLI::App& app, Context& ctx);
 void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* options);
 /// mvtwin bench calibrate (tools/bench_calibrate.cpp), under the bench command.
 void register_bench_calibrate(CLI::App& bench, Context& ctx);
+/// mvtwin bench detect (tools/bench_detect.cpp), under the bench command.
+void register_bench_detect(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).
 void register_clip(CLI::App& app, Context& ctx);
 /// mvtwin train-detector and mvtwin detect (tools/detect.cpp).

@@ -1,16 +1,22 @@
 // mvtwin train-detector and mvtwin detect: valve anatomy from 3D+t TEE (detection/valve_detector.h).
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <mutex>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
+#include "output_files.h"
+#include "virtual_tee.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
@@ -22,6 +28,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
+std::string json_list(const std::vector<double>& v) {
+  std::string s;
+  for (double x : v) s += (s.empty() ? "" : ",") + std::to_string(x);
+  return s;
+}
+
 std::vector<fs::path> patient_files(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error(dir.string() + ": not a directory");
@@ -32,27 +44,45 @@ std::vector<fs::path> patient_files(const fs::path& dir) {
   return out;
 }
 
-/// Mean symmetric point-to-mesh distance of two valve frames' LA surfaces, mm (NaN without both).
-double frame_surface_error(const ValveFrame& a, const ValveFrame& b) {
-  if (!a.la_surface || !b.la_surface) return std::numeric_limits<double>::quiet_NaN();
-  return symmetric_surface_distance(a.la_surface->triangulate(), b.la_surface->triangulate()).symmetric.mean;
-}
-
 }  // namespace
 
 void register_detect(CLI::App& app, Context& ctx) {
   {
     auto* cmd = app.add_subcommand("train-detector", "Train the valve detector on a cohort with images");
     cmd->footer(
-        "Example:\n  mvtwin train-detector --cohort train/ --out detector.yml.gz\n"
-        "Every patient file in the cohort directory with images (mvtwin render-tee) and an\n"
-        "observed valve in the same frames is used: each frame with landmarks and an LA surface\n"
-        "is one training volume.");
+        "Examples:\n  mvtwin train-detector --cohort train/ --out detector.yml.gz\n"
+        "  mvtwin train-detector --virtual 12 --out detector.yml.gz --cache truths/\n"
+        "--cohort: every patient file in the directory with images (mvtwin render-tee) and a\n"
+        "valve in the same frames is used: each frame with landmarks and an LA surface is one\n"
+        "training volume. --virtual N: N virtual patients (synthetic; seeds --cohort-seed x 1000 +\n"
+        "1..N, pathologies in turn), their closing frames simulated and every frame rendered as\n"
+        "synthetic TEE (--voxel, --probe-jitter), --jobs at once.");
     auto cohort = std::make_shared<std::string>();
     auto out = std::make_shared<std::string>();
     auto force = std::make_shared<bool>(false);
+    auto n_virtual = std::make_shared<int>(0);
+    auto cohort_seed = std::make_shared<unsigned>(3030);
+    auto jobs = std::make_shared<int>(2);
+    auto cache = std::make_shared<std::string>();
+    auto ro = std::make_shared<detection::TeeRenderOptions>();
+    ro->probe_jitter_deg = 10;
     auto o = std::make_shared<detection::DetectorOptions>();
-    cmd->add_option("--cohort", *cohort, "directory of patient files (HDF5) with images")->required();
+    auto* cohort_opt = cmd->add_option("--cohort", *cohort, "directory of patient files (HDF5) with images");
+    cmd->add_option("--virtual", *n_virtual, "train on this many virtual patients instead (synthetic)")
+        ->check(CLI::Range(3, 499))
+        ->excludes(cohort_opt);
+    cmd->add_option("--cohort-seed", *cohort_seed, "with --virtual: the cohort's seed")->default_val(3030);
+    cmd->add_option("--voxel", ro->voxel_mm, "with --virtual: voxel size, mm")->default_val(ro->voxel_mm);
+    cmd->add_option("--probe-jitter", ro->probe_jitter_deg, "with --virtual: probe pose variation, degrees")
+        ->default_val(ro->probe_jitter_deg);
+    cmd->add_option("--jobs", *jobs, "with --virtual: patients prepared at once")->default_val(2)->check(CLI::Range(1, 256));
+    cmd->add_option("--cache", *cache, "with --virtual: directory keeping the simulated patients");
+    auto train_noise = std::make_shared<std::vector<double>>(kTrainingNoise);
+    cmd->add_option("--train-noise", *train_noise, "with --virtual: electronic noise SDs of the renders (patients cycle)")
+        ->delimiter(',')
+        ->default_str("0.004,0.016,0.063,0");
+    auto truth_sets = std::make_shared<std::vector<std::string>>();
+    cmd->add_option("--truth-set", *truth_sets, "with --virtual: name=value for the model simulating the closing frames");
     cmd->add_option("--out", *out, "model file (.yml.gz)")->required();
     cmd->add_flag("--force", *force, "replace an existing model file");
     cmd->add_option("--trees", o->trees, "trees per forest")->default_val(o->trees);
@@ -61,7 +91,31 @@ void register_detect(CLI::App& app, Context& ctx) {
     cmd->add_option("--seed", o->seed, "random seed")->default_val(o->seed);
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
+        if (cohort->empty() == (*n_virtual == 0)) throw Error("train-detector: give --cohort DIR or --virtual N");
         refuse_overwrite_path(*out, *force);
+        if (*n_virtual > 0) {
+          if (const std::string e = ro->invalid(); !e.empty()) throw Error("train-detector: " + e);
+          std::vector<std::uint64_t> seeds;
+          for (int i = 0; i < *n_virtual; ++i)
+            seeds.push_back(static_cast<std::uint64_t>(*cohort_seed) * 1000 + static_cast<std::uint64_t>(i) + 1);
+          std::mutex io;
+          const VirtualTrainingResult r =
+              train_on_virtual_cohort(seeds, VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs, fs::path(*cache), io);
+          std::string ids;
+          for (const auto& id : r.patients) ids += (ids.empty() ? "" : ",") + id;
+          std::ostringstream render;
+          render << "voxel_mm=" << ro->voxel_mm << " probe_jitter_deg=" << ro->probe_jitter_deg
+                 << " noise=" << json_list(*train_noise) << " speckle=" << ro->speckle << " dropout=" << ro->dropout_fraction;
+          r.detector.save(*out, {{"mvtwin_version", std::string(kVersion)},
+                                 {"command", ctx.command_line},
+                                 {"created_utc", utc_now_iso8601()},
+                                 {"training_patients", ids + " (synthetic)"},
+                                 {"training_render", render.str()},
+                                 {"training_volumes", std::to_string(r.volumes)}});
+          std::cout << "shape model " << r.detector.shape().modes() << " modes on a " << r.detector.shape().ures()
+                    << " x " << r.detector.shape().vres() << " grid\nwrote " << *out << "\n";
+          return 0;
+        }
         std::vector<Patient> patients;
         std::vector<std::string> used;
         for (const fs::path& f : patient_files(*cohort)) {
@@ -123,6 +177,8 @@ void register_detect(CLI::App& app, Context& ctx) {
     cmd->add_option("--model", *model, "detector model (mvtwin train-detector)")->required();
     cmd->add_option("--out", *out, "write the patient with its detection here instead of updating FILE");
     cmd->add_flag("--force", *force, "replace an earlier detection, or an existing --out");
+    auto json_path = std::make_shared<std::string>();
+    cmd->add_option("--json", *json_path, "write the timing and, with a stored valve, the errors here");
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
         Patient p = read_patient(*file, true);
@@ -144,27 +200,44 @@ void register_detect(CLI::App& app, Context& ctx) {
           seq.end_diastole = -1;
           seq.first_closed = -1;
         }
-        double total_s = 0, err = 0;
-        int nerr = 0;
-        for (std::size_t f = 0; f < frames.size(); ++f) {
-          total_s += info[f].seconds;
-          if (p.images.size() == p.sequence.frames.size()) {
-            const double e = frame_surface_error(frames[f], p.sequence.frames[f]);
-            if (std::isfinite(e)) {
-              err += e;
-              ++nerr;
-            }
-          }
-        }
         p.detected = seq;
         p.detected_by = "model " + *model + "; " + ctx.command_line;
         write_patient(dest, p);
+        double total_s = 0;
+        for (const auto& i : info) total_s += i.seconds;
         std::cout << "detected " << frames.size() << " frames of " << p.id << (p.synthetic ? " [SYNTHETIC]" : "")
                   << " in " << total_s << " s (" << total_s / static_cast<double>(frames.size())
                   << " s per volume)\n";
-        if (nerr > 0)
-          std::cout << "  surface error against the stored valve: " << err / nerr << " mm (mean over "
-                    << nerr << " frames)\n";
+        // Against the valve stored in the file (for a virtual patient: its truth), when it has
+        // the same frames.
+        nlohmann::json report{{"patient_id", p.id},
+                              {"synthetic", p.synthetic},
+                              {"model", *model},
+                              {"frames", frames.size()},
+                              {"s_per_volume", total_s / static_cast<double>(frames.size())},
+                              {"provenance",
+                               {{"mvtwin_version", kVersion},
+                                {"command", ctx.command_line},
+                                {"created_utc", utc_now_iso8601()}}}};
+        if (p.images.size() == p.sequence.frames.size()) {
+          nlohmann::json run{{"frames", detection_errors(p, frames, info)}};
+          const nlohmann::json s = summarize_detections({&run});
+          if (s["frames"].get<int>() > 0) {
+            std::printf("  against the stored valve%s: surface %.2f mm (SD %.2f over %d frames; open %.2f, closed "
+                        "%.2f), papillary tips %.2f mm\n",
+                        p.synthetic ? " (the virtual truth)" : "", s["error_mean_mm"].get<double>(),
+                        s["error_sd_mm"].get<double>(), s["frames"].get<int>(),
+                        s["by_phase"].value("open", nlohmann::json::object()).value("error_mean_mm", std::nan("")),
+                        s["by_phase"].value("closed", nlohmann::json::object()).value("error_mean_mm", std::nan("")),
+                        s["papillary_error_mm"].get<double>());
+            report["against_stored"] = s;
+            report["per_frame"] = run["frames"];
+          }
+        }
+        if (!json_path->empty()) {
+          write_json_file(*json_path, report);
+          std::cout << "wrote " << *json_path << "\n";
+        }
         std::cout << "wrote /detected into " << dest.string() << "\n";
         return 0;
       };

@@ -22,4 +22,8 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
 /// Writes `j` (indented by `indent`) to `path` atomically; nothing for an empty path.
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent = 2);
 
+/// A short key (FNV-1a, 8 hex digits) naming cached files by what made them, so that a changed
+/// setting never reuses a file made otherwise.
+std::string cache_key(const std::string& description);
+
 }  // namespace mvtwin::tools

@@ -20,6 +20,8 @@ namespace {
 
 constexpr double kPositionSigmaMm = 3.0, kLandmarkSigmaMm = 2.0, kBoundarySigmaMm = 1.0;
 constexpr int kContext = 3;  // offset from the detected centre, image axes, mm
+constexpr int kHypotheses = 3;            // position hypotheses in a fresh volume
+constexpr double kCentreMarginMm = 10.0;  // around the training valves' centres
 
 /// World <-> voxel index of one volume.
 struct Voxels {
@@ -73,22 +75,39 @@ std::vector<float> predict(const cv::Ptr<cv::ml::RTrees>& f, cv::Mat& samples) {
   return r;
 }
 
-/// The position with the highest predicted proximity: the proximity-weighted mean of the
-/// best few candidates.
-Eigen::Vector3d best_of(const std::vector<Eigen::Vector3d>& xs, const std::vector<float>& score, int top = 6) {
+/// A peak of the predicted proximity: the proximity-weighted mean of the best candidates
+/// within `radius` mm of the best one (never averaging two separate peaks).
+struct Peak {
+  Eigen::Vector3d x;
+  float score = 0;
+};
+
+/// Up to `count` peaks, best first, each at least `separation` mm from the better ones.
+std::vector<Peak> peaks(const std::vector<Eigen::Vector3d>& xs, const std::vector<float>& score, int count,
+                        double radius, double separation, int top = 6) {
   std::vector<std::size_t> order(xs.size());
   std::iota(order.begin(), order.end(), 0);
-  const auto k = std::min<std::size_t>(static_cast<std::size_t>(top), order.size());
-  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
-                    [&](std::size_t a, std::size_t b) { return score[a] > score[b]; });
-  Eigen::Vector3d s = Eigen::Vector3d::Zero();
-  double w = 0;
-  for (std::size_t i = 0; i < k; ++i) {
-    const double wi = std::max(1e-6, static_cast<double>(score[order[i]]));
-    s += wi * xs[order[i]];
-    w += wi;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return score[a] > score[b]; });
+  std::vector<Peak> out;
+  for (std::size_t i : order) {
+    if (static_cast<int>(out.size()) >= count) break;
+    bool near = false;
+    for (const Peak& q : out) near = near || (xs[i] - q.x).norm() < separation;
+    if (near) continue;
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    double w = 0;
+    int used = 0;
+    for (std::size_t j : order) {
+      if (used >= top || score[j] < 0.5f * score[i]) break;
+      if ((xs[j] - xs[i]).norm() > radius) continue;
+      const double wj = std::max(1e-6, static_cast<double>(score[j]));
+      s += wj * xs[j];
+      w += wj;
+      ++used;
+    }
+    out.push_back({s / w, score[i]});
   }
-  return s / w;
+  return out;
 }
 
 /// Unit normals of the grid (towards the atrium side of the u x v orientation).
@@ -111,6 +130,20 @@ Points3 grid_normals(const Points3& P, int ures, int vres) {
 
 }  // namespace
 
+ValveFrame with_surface_tips(const ValveFrame& frame) {
+  ValveFrame out = frame;
+  if (!frame.la_surface) return out;
+  const std::array<std::pair<Landmark, double>, 2> tips = {
+      std::pair{Landmark::kAnteriorLeafletTip, 0.25}, std::pair{Landmark::kPosteriorLeafletTip, 0.75}};
+  for (const auto& [l, s] : tips) {
+    const auto i = static_cast<std::size_t>(index(l));
+    if (out.landmark_observed[i]) continue;
+    out.landmarks[i] = frame.la_surface->sample(s, 1.0);
+    out.landmark_observed[i] = true;
+  }
+  return out;
+}
+
 std::string DetectorOptions::invalid() const {
   if (scales.empty()) return "no feature scales";
   for (int s : scales)
@@ -130,6 +163,9 @@ struct ValveDetector::Impl {
   cv::Ptr<cv::ml::RTrees> position, boundary;
   std::vector<cv::Ptr<cv::ml::RTrees>> landmarks;  // kNumLandmarks
   std::vector<Eigen::Vector3d> landmark_offset;    // mean landmark - centre, image axes, mm
+  // Where the training valves' centres were relative to their volume's centre (image axes, mm).
+  bool has_centre_range = false;
+  Eigen::Vector3d centre_lo = Eigen::Vector3d::Zero(), centre_hi = Eigen::Vector3d::Zero();
 
   int nf() const { return feature_count(options.scales); }
 };
@@ -144,12 +180,19 @@ const DetectorOptions& ValveDetector::options() const { return impl_->options; }
 ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, const DetectorOptions& o,
                                    const std::function<void(const std::string&)>& progress) {
   if (const std::string e = o.invalid(); !e.empty()) throw Error("detector: " + e);
+  // Closing and closed frames leave the leaflet tips unobserved (they meet at the coaptation);
+  // their tips are taken from the surface as in the open frames (the free edge's middle of each
+  // leaflet), so that closed valves train the detectors and the shape model too.
+  std::vector<ValveFrame> completed;
+  completed.reserve(data.size());
   std::vector<TrainingVolume> usable;
   for (const TrainingVolume& t : data) {
     if (!t.image || !t.truth || !t.truth->la_surface || t.image->data.size() != t.image->num_voxels()) continue;
+    completed.push_back(with_surface_tips(*t.truth));
     bool all = true;
-    for (int l = 0; l < kNumLandmarks; ++l) all = all && t.truth->landmark_observed[static_cast<std::size_t>(l)];
-    if (all) usable.push_back(t);
+    for (int l = 0; l < kNumLandmarks; ++l) all = all && completed.back().landmark_observed[static_cast<std::size_t>(l)];
+    if (all) usable.push_back({t.image, &completed.back()});
+    else completed.pop_back();
   }
   if (usable.size() < 3)
     throw Error("detector: needs at least 3 training volumes with landmarks and a surface, got " +
@@ -188,6 +231,13 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
     const Eigen::Vector3d c = f.annulus.colwise().mean().transpose();
     for (int l = 0; l < kNumLandmarks; ++l)
       m.landmark_offset[static_cast<std::size_t>(l)] += im.direction.transpose() * (f.landmarks[static_cast<std::size_t>(l)] - c);
+    {
+      const Eigen::Vector3d mid = vx.world(Eigen::Vector3d(0.5 * (im.size[0] - 1), 0.5 * (im.size[1] - 1), 0.5 * (im.size[2] - 1)));
+      const Eigen::Vector3d off = im.direction.transpose() * (c - mid);
+      m.centre_lo = m.has_centre_range ? Eigen::Vector3d(m.centre_lo.cwiseMin(off)) : off;
+      m.centre_hi = m.has_centre_range ? Eigen::Vector3d(m.centre_hi.cwiseMax(off)) : off;
+      m.has_centre_range = true;
+    }
     auto random_offset = [&](double r) {
       return Eigen::Vector3d(rng.uniform(-r, r), rng.uniform(-r, r), rng.uniform(-r, r));
     };
@@ -256,21 +306,6 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   const int nf = m.nf(), nc = nf + kContext;
   const DetectorOptions& o = m.options;
 
-  // 1. Position.
-  std::vector<Eigen::Vector3d> xs;
-  if (previous) {
-    const Eigen::Vector3d pc = previous->annulus.colwise().mean().transpose();
-    const double r = o.track_search_mm, st = std::max(1.0, vx.voxel_mm);
-    for (double a = -r; a <= r + 1e-9; a += st)
-      for (double b = -r; b <= r + 1e-9; b += st)
-        for (double c = -r; c <= r + 1e-9; c += st) xs.push_back(pc + im.direction * Eigen::Vector3d(a, b, c));
-  } else {
-    const int step = std::max(1, static_cast<int>(std::lround(o.position_step_mm / vx.voxel_mm)));
-    const int margin = o.scales.back();
-    for (int k = margin; k < im.size[2] - margin; k += step)
-      for (int j = margin; j < im.size[1] - margin; j += step)
-        for (int i = margin; i < im.size[0] - margin; i += step) xs.push_back(vx.world(Eigen::Vector3d(i, j, k)));
-  }
   auto score = [&](const cv::Ptr<cv::ml::RTrees>& f, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d* centre) {
     const int cols = centre ? nc : nf;
     cv::Mat X(static_cast<int>(pts.size()), cols, CV_32F, cv::Scalar(0));
@@ -281,10 +316,65 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
     }
     return predict(f, X);
   };
-  Eigen::Vector3d centre = best_of(xs, score(m.position, xs, nullptr));
+  // Candidates on a cube of half-width r (mm) around x, step st, in the volume's axes.
+  auto cube = [&](const Eigen::Vector3d& x, double r, double st) {
+    std::vector<Eigen::Vector3d> out;
+    for (double a = -r; a <= r + 1e-9; a += st)
+      for (double b = -r; b <= r + 1e-9; b += st)
+        for (double c = -r; c <= r + 1e-9; c += st) out.push_back(x + im.direction * Eigen::Vector3d(a, b, c));
+    return out;
+  };
+  const double h = std::max(1.0, vx.voxel_mm);  // finest search step, mm
 
-  // 2. Landmarks, each in a box around its expected place; then the centre again from the
-  // mean shape they place, and the landmarks once more from it when it moved.
+  // 1. Position: a few separate hypotheses in a fresh volume (the landmarks decide), the best
+  // near the previous frame's when tracking.
+  std::vector<Eigen::Vector3d> hypotheses;
+  if (previous) {
+    const std::vector<Eigen::Vector3d> xs = cube(previous->annulus.colwise().mean().transpose(), o.track_search_mm, 2 * h);
+    hypotheses.push_back(peaks(xs, score(m.position, xs, nullptr), 1, 3 * h, 0.0).front().x);
+  } else {
+    const int step = std::max(1, static_cast<int>(std::lround(o.position_step_mm / vx.voxel_mm)));
+    const int margin = o.scales.back();
+    const Eigen::Vector3d mid = vx.world(Eigen::Vector3d(0.5 * (im.size[0] - 1), 0.5 * (im.size[1] - 1), 0.5 * (im.size[2] - 1)));
+    std::vector<Eigen::Vector3d> xs;
+    for (int k = margin; k < im.size[2] - margin; k += step)
+      for (int j = margin; j < im.size[1] - margin; j += step)
+        for (int i = margin; i < im.size[0] - margin; i += step) {
+          const Eigen::Vector3d x = vx.world(Eigen::Vector3d(i, j, k));
+          if (m.has_centre_range) {  // where training valves were, with a margin
+            const Eigen::Vector3d off = im.direction.transpose() * (x - mid);
+            if (((off - m.centre_lo).array() < -kCentreMarginMm).any() || ((off - m.centre_hi).array() > kCentreMarginMm).any())
+              continue;
+          }
+          xs.push_back(x);
+        }
+    if (xs.empty()) throw Error("detector: the volume is too small to search");
+    for (const Peak& pk : peaks(xs, score(m.position, xs, nullptr), kHypotheses, 2.0 * step * vx.voxel_mm, 10.0))
+      hypotheses.push_back(pk.x);
+  }
+
+  // 2. Landmarks, each in a box around its expected place (coarse, then on the voxel grid), with
+  // the offset from the centre as context. Their mean peak score rates a position hypothesis.
+  struct Found {
+    std::array<Eigen::Vector3d, kNumLandmarks> at;
+    double score = 0;
+  };
+  auto find_landmarks = [&](const Eigen::Vector3d& centre, bool from_previous, bool refine) {
+    Found f;
+    for (int l = 0; l < kNumLandmarks; ++l) {
+      const auto li = static_cast<std::size_t>(l);
+      const Eigen::Vector3d guess = from_previous ? previous->landmarks[li] : Eigen::Vector3d(centre + im.direction * m.landmark_offset[li]);
+      std::vector<Eigen::Vector3d> cand = cube(guess, previous ? o.track_search_mm : o.landmark_search_mm, 2 * h);
+      Peak best = peaks(cand, score(m.landmarks[li], cand, &centre), 1, 3 * h, 0.0).front();
+      if (refine) {
+        cand = cube(best.x, 2 * h, h);
+        best = peaks(cand, score(m.landmarks[li], cand, &centre), 1, 1.5 * h, 0.0, 4).front();
+      }
+      f.at[li] = best.x;
+      f.score += static_cast<double>(best.score) / kNumLandmarks;
+    }
+    return f;
+  };
   ValveFrame out;
   out.time_s = im.time_s;
   auto placing = [&] {
@@ -293,33 +383,32 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
       L.row(static_cast<Eigen::Index>(i)) = out.landmark(kPlacingLandmarks[i]).transpose();
     return L;
   };
-  for (int pass = 0; pass < 2; ++pass) {
-  for (int l = 0; l < kNumLandmarks; ++l) {
-    const Eigen::Vector3d guess = previous && pass == 0 ? previous->landmarks[static_cast<std::size_t>(l)]
-                                           : Eigen::Vector3d(centre + im.direction * m.landmark_offset[static_cast<std::size_t>(l)]);
-    const double r = previous ? o.track_search_mm : o.landmark_search_mm;
-    const double st = std::max(1.0, vx.voxel_mm) * (previous ? 1.0 : 2.0);
-    std::vector<Eigen::Vector3d> cand;
-    for (double a = -r; a <= r + 1e-9; a += st)
-      for (double b = -r; b <= r + 1e-9; b += st)
-        for (double c = -r; c <= r + 1e-9; c += st) cand.push_back(guess + im.direction * Eigen::Vector3d(a, b, c));
-    Eigen::Vector3d best = best_of(cand, score(m.landmarks[static_cast<std::size_t>(l)], cand, &centre));
-    if (!previous) {  // refine on the voxel grid
-      cand.clear();
-      const double h = std::max(1.0, vx.voxel_mm);
-      for (int a = -2; a <= 2; ++a)
-        for (int b = -2; b <= 2; ++b)
-          for (int c = -2; c <= 2; ++c) cand.push_back(best + im.direction * Eigen::Vector3d(a, b, c) * h);
-      best = best_of(cand, score(m.landmarks[static_cast<std::size_t>(l)], cand, &centre), 4);
+  auto take = [&](const Found& f) {
+    out.landmarks = f.at;
+    out.landmark_observed.fill(true);
+  };
+  Eigen::Vector3d centre = hypotheses.front();
+  if (previous) {
+    take(find_landmarks(centre, true, true));
+  } else {
+    // The hypothesis whose landmarks the detectors believe most; then the centre again from the
+    // mean shape those landmarks place, and the landmarks once more around it.
+    Found best;
+    best.score = -1;
+    for (const Eigen::Vector3d& c : hypotheses) {
+      const Found f = find_landmarks(c, false, hypotheses.size() == 1);
+      if (f.score > best.score) {
+        best = f;
+        centre = c;
+      }
     }
-    out.landmarks[static_cast<std::size_t>(l)] = best;
-    out.landmark_observed[static_cast<std::size_t>(l)] = true;
-  }
-    if (pass == 1 || previous) break;
+    take(best);
     const Points3 placed = m.shape.place_mean(placing());
     const Eigen::Vector3d c2 = placed.topRows(m.shape.ures()).colwise().mean().transpose();
-    if ((c2 - centre).norm() < 1.0) break;
-    centre = c2;
+    if ((c2 - centre).norm() >= 1.0 || hypotheses.size() > 1) {
+      centre = (c2 - centre).norm() >= 1.0 ? c2 : centre;
+      take(find_landmarks(centre, false, true));
+    }
   }
 
   // 3. Surface: placed by the landmarks, refined along the normals, kept in the shape space.
@@ -335,7 +424,7 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   }
   for (int it = 0; it < o.surface_iterations; ++it) {
     const double r = o.normal_search_mm * (1.0 - 0.5 * it / std::max(1, o.surface_iterations));
-    const double st = 0.5 * vx.voxel_mm;
+    const double st = vx.voxel_mm;
     const int ns = 2 * static_cast<int>(r / st) + 1;
     const Points3 N = grid_normals(P, ures, vres);
     std::vector<Eigen::Vector3d> cand;
@@ -355,7 +444,16 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
           best = s;
         }
       }
-      if (best >= 0) moved.row(k) = cand[static_cast<std::size_t>(k * ns + best)].transpose();
+      if (best < 0) continue;
+      // Sub-sample: the vertex of the parabola through the best score and its neighbours.
+      double d = 0;
+      if (best > 0 && best < ns - 1) {
+        const double sm = static_cast<double>(sc[static_cast<std::size_t>(k * ns + best - 1)]),
+                     s0 = static_cast<double>(bs), sp = static_cast<double>(sc[static_cast<std::size_t>(k * ns + best + 1)]);
+        const double den = sm - 2 * s0 + sp;
+        if (den < -1e-9) d = std::clamp(0.5 * (sm - sp) / den, -0.5, 0.5);
+      }
+      moved.row(k) = (cand[static_cast<std::size_t>(k * ns + best)] + d * st * N.row(k).transpose()).transpose();
     }
     P = m.shape.constrain(moved, place);
   }
@@ -421,6 +519,9 @@ void ValveDetector::save(const std::filesystem::path& path,
       std::vector<double> offs;
       for (const auto& v : m.landmark_offset) offs.insert(offs.end(), v.data(), v.data() + 3);
       fs << "landmark_offset" << offs;
+      if (m.has_centre_range)
+        fs << "centre_range" << std::vector<double>{m.centre_lo[0], m.centre_lo[1], m.centre_lo[2],
+                                                   m.centre_hi[0], m.centre_hi[1], m.centre_hi[2]};
       fs << "position" << "{";
       m.position->write(fs);
       fs << "}";
@@ -474,6 +575,14 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   if (offs.size() != 3 * kNumLandmarks) throw Error(what + ": bad landmark offsets");
   for (int l = 0; l < kNumLandmarks; ++l)
     m.landmark_offset.emplace_back(offs[3 * l], offs[3 * l + 1], offs[3 * l + 2]);
+  if (!fs["centre_range"].empty()) {  // models written before it was learned search everywhere
+    std::vector<double> r;
+    fs["centre_range"] >> r;
+    if (r.size() != 6) throw Error(what + ": bad centre range");
+    m.centre_lo = Eigen::Vector3d(r[0], r[1], r[2]);
+    m.centre_hi = Eigen::Vector3d(r[3], r[4], r[5]);
+    m.has_centre_range = true;
+  }
   auto forest = [&](const std::string& name) {
     cv::Ptr<cv::ml::RTrees> f = cv::ml::RTrees::create();
     if (fs[name].empty()) throw Error(what + ": the model lacks the '" + name + "' detector");
@@ -486,6 +595,24 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   for (int l = 0; l < kNumLandmarks; ++l)
     m.landmarks.push_back(forest("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])));
   return d;
+}
+
+std::vector<std::pair<std::string, std::string>> ValveDetector::provenance(const std::filesystem::path& path) {
+  const std::string what = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw Error(what + ": no such file");
+  cv::FileStorage fs;
+  try {
+    fs.open(what, cv::FileStorage::READ);
+  } catch (const cv::Exception& e) {
+    throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) + ")");
+  }
+  if (!fs.isOpened() || fs["format"].empty() || static_cast<std::string>(fs["format"]) != "mvtwin-valve-detector")
+    throw Error(what + ": not an mvtwin valve detector model");
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const cv::FileNode& n : fs["provenance"])
+    if (n.isString()) out.emplace_back(n.name(), static_cast<std::string>(n));
+  return out;
 }
 
 }  // namespace mvtwin::detection

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -117,6 +118,29 @@ TEST(ValveDetector, BeatsTheMeanShapeBaselineOnHeldOutVolumesAndSurvivesASaveLoa
   EXPECT_THROW(ValveDetector::load(dir / "missing.yml.gz"), Error);
   EXPECT_THROW(d.save(dir / "m.txt", {}), Error);
   std::filesystem::remove_all(dir);
+}
+
+TEST(ValveDetector, ClosedFramesGetTheirTipsFromTheSurfaceAsOpenFramesDefineThem) {
+  const Patient p = make_virtual_patient(5);
+  const ValveFrame& ed = p.sequence.frames[static_cast<std::size_t>(p.sequence.end_diastole)];
+  const auto a = static_cast<std::size_t>(index(Landmark::kAnteriorLeafletTip));
+  const auto b = static_cast<std::size_t>(index(Landmark::kPosteriorLeafletTip));
+  ASSERT_TRUE(ed.landmark_observed[a] && ed.landmark_observed[b]);
+  // An open frame's observed tips are the surface's free-edge middles: the rule reproduces them.
+  ValveFrame hidden = ed;
+  hidden.landmark_observed[a] = hidden.landmark_observed[b] = false;
+  hidden.landmarks[a].setConstant(std::nan(""));
+  const ValveFrame filled = with_surface_tips(hidden);
+  EXPECT_TRUE(filled.landmark_observed[a] && filled.landmark_observed[b]);
+  EXPECT_LT((filled.landmarks[a] - ed.landmarks[a]).norm(), 1e-6);
+  EXPECT_LT((filled.landmarks[b] - ed.landmarks[b]).norm(), 1e-6);
+  // Observed tips are kept as they are; a frame without a surface is left alone.
+  ValveFrame moved = ed;
+  moved.landmarks[a] += Eigen::Vector3d(1, 2, 3);
+  EXPECT_EQ(with_surface_tips(moved).landmarks[a], moved.landmarks[a]);
+  ValveFrame bare = hidden;
+  bare.la_surface.reset();
+  EXPECT_FALSE(with_surface_tips(bare).landmark_observed[a]);
 }
 
 TEST(ValveDetector, RefusesTooLittleTrainingDataAndBadOptions) {

@@ -127,6 +127,55 @@ TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
   EXPECT_NE(r.err.find("not an mvtwin calibration file"), std::string::npos) << r.err;
 }
 
+TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "simulating, rendering and training forests takes too long under AddressSanitizer";
+#endif
+  // Refusals first: nothing to train on; both sources at once.
+  CmdResult r = run("train-detector --out " + path("m.yml.gz"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--cohort DIR or --virtual N"), std::string::npos) << r.err;
+  r = run("train-detector --virtual 3 --cohort " + path("") + " --out " + path("m.yml.gz"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_FALSE(fs::exists(dir_ / "m.yml.gz"));
+  r = run("clip " + path("p.h5") + " --true-params --params " + path("c.h5") + " --at 0.5");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("excludes"), std::string::npos) << r.err;
+
+  // A small virtual training cohort (coarse voxels, small forests), its truths cached.
+  const std::string small =
+      " --voxel 2.5 --trees 8 --samples 300 --jobs 2 --truth-set ures=16 --truth-set vres=8 --train-noise 0.004"
+      " --cache " + path("cache");
+  r = run("train-detector --virtual 3 --cohort-seed 77 --out " + path("m.yml.gz") + small);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("training on "), std::string::npos) << r.out;
+  ASSERT_TRUE(fs::exists(dir_ / "m.yml.gz"));
+  {
+    std::ifstream f(path("m.yml.gz"));
+    EXPECT_TRUE(f.good());
+  }
+  // The benchmark of that model on one held-out patient (its truth cached beside the others);
+  // its figures say what made them.
+  const std::string bench = "bench detect --model " + path("m.yml.gz") +
+                            " --test 1 --seed 77 --noise-levels 0.004,0.1 --json " + path("d.json") + small;
+  r = run(bench);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  std::ifstream f(path("d.json"));
+  std::stringstream js;
+  js << f.rdbuf();
+  const std::string j = js.str();
+  for (const char* key : {"\"error_mean_mm\"", "\"error_sd_mm\"", "\"landmark_error_mm\"", "\"papillary_error_mm\"",
+                          "\"s_per_volume\"", "\"n_train\": 3", "\"n_test\": 1", "\"noise_levels\"",
+                          "\"posteromedial_papillary_tip\"", "\"synthetic\": true", "\"mvtwin_version\""})
+    EXPECT_NE(j.find(key), std::string::npos) << key << " missing from\n" << j.substr(0, 2000);
+  EXPECT_NE(r.out.find("patient 1/1"), std::string::npos) << r.out;
+  // Run again: everything is resumed from the JSON, nothing is detected twice.
+  r = run(bench);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("resuming: 2 detections"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("patient 1/1"), std::string::npos) << r.out;
+}
+
 TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
   CmdResult r = run("cohort --n 4 --seed 3 --out " + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;

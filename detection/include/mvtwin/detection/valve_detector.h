@@ -42,6 +42,11 @@ struct DetectionInfo {
   double seconds = 0;
 };
 
+/// The frame with its unobserved leaflet tips (closing and closed frames) taken from its LA
+/// surface, as the open frames define them: the middle of each leaflet's free edge (s = 0.25
+/// anterior, 0.75 posterior, at the free edge). Frames without a surface are returned as they are.
+ValveFrame with_surface_tips(const ValveFrame& frame);
+
 class ValveDetector {
  public:
   ValveDetector();
@@ -72,6 +77,8 @@ class ValveDetector {
   void save(const std::filesystem::path& path, const std::vector<std::pair<std::string, std::string>>& provenance) const;
   /// Throws mvtwin::Error naming the file when it is missing or not an mvtwin detector model.
   static ValveDetector load(const std::filesystem::path& path);
+  /// The provenance a model file records (name = value), without loading its forests.
+  static std::vector<std::pair<std::string, std::string>> provenance(const std::filesystem::path& path);
 
  private:
   struct Impl;

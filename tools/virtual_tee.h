@@ -1,0 +1,72 @@
+#pragma once
+// Virtual patients with synthetic TEE for training and testing the valve detector: the
+// closing frames simulated (the truth to detect), every frame rendered. Shared by
+// mvtwin train-detector --virtual and mvtwin bench detect.
+#include <cstdint>
+#include <filesystem>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "mvtwin/core/patient.h"
+#include "mvtwin/detection/tee_renderer.h"
+#include "mvtwin/detection/valve_detector.h"
+#include "mvtwin/forward/virtual_closure.h"
+
+namespace mvtwin::tools {
+
+/// How the truth is made: the closing frames simulated by the calibration model's defaults
+/// changed by `sets` (name=value), without noise (the surfaces the images are rendered from).
+struct VirtualTeeTruth {
+  explicit VirtualTeeTruth(const std::vector<std::string>& sets = {});
+  forward::VirtualClosureOptions closure;
+  std::string key;  ///< names cached truth files by the model that made them
+};
+
+/// Virtual patient `seed` (pathology `i % kNumPathologies`) with its closing frames simulated.
+/// With a `cache` directory the patient is read from it when there, else written to it. `io`
+/// serializes HDF5 (not built thread-safe). Throws mvtwin::Error when the simulation fails.
+Patient virtual_tee_patient(std::uint64_t seed, int i, const VirtualTeeTruth& truth,
+                            const std::filesystem::path& cache, std::mutex& io);
+
+/// The patient's frames rendered with `render` (its noise as given), the speckle seeded by the
+/// patient's seed.
+std::vector<ImageVolume> render_virtual_tee(const Patient& patient, detection::TeeRenderOptions render);
+
+/// The training renders' noise levels by default: the default acquisition, 4x and 16x its
+/// electronic noise, and none (patients cycle through them).
+inline const std::vector<double> kTrainingNoise = {0.004, 0.016, 0.063, 0.0};
+
+struct VirtualTrainingResult {
+  detection::ValveDetector detector;
+  std::vector<std::string> patients;  ///< ids used
+  int volumes = 0;
+  double prepare_s = 0;  ///< simulating and rendering
+  double train_s = 0;
+};
+
+/// Trains a detector on the virtual patients `seeds` (each rendered; every frame with a known
+/// surface is one training volume), `jobs` patients prepared at once. Patient k is rendered
+/// with the electronic noise `noise[k % noise.size()]` (images of varied quality; `render`'s
+/// own noise when empty). A patient whose simulation fails is skipped and said so. Progress
+/// lines go to std::cout.
+VirtualTrainingResult train_on_virtual_cohort(const std::vector<std::uint64_t>& seeds, const VirtualTeeTruth& truth,
+                                              const detection::TeeRenderOptions& render,
+                                              const std::vector<double>& noise,
+                                              const detection::DetectorOptions& options, int jobs,
+                                              const std::filesystem::path& cache, std::mutex& io);
+
+/// A detection of `truth`'s images against its stored valve: per frame, its phase, the detection
+/// time, the surface error (symmetric point-to-mesh, where the frame has a known surface) and
+/// each observed landmark's distance (JSON array of frames).
+nlohmann::json detection_errors(const Patient& truth, const std::vector<ValveFrame>& detected,
+                                const std::vector<detection::DetectionInfo>& info);
+
+/// Figures over detections (objects with "frames" from detection_errors): surface error mean
+/// and SD over frames, by phase, the SD of the patients' means, per landmark, papillary tips,
+/// s per volume.
+nlohmann::json summarize_detections(const std::vector<const nlohmann::json*>& runs);
+
+}  // namespace mvtwin::tools
