@@ -538,7 +538,11 @@ void ValveDetector::save(const std::filesystem::path& path,
   });
 }
 
-ValveDetector ValveDetector::load(const std::filesystem::path& path) {
+namespace {
+
+/// Opens a model file for reading; throws mvtwin::Error naming it when it is missing, unreadable
+/// or not an mvtwin detector model.
+cv::FileStorage open_model(const std::filesystem::path& path) {
   const std::string what = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw Error(what + ": no such file");
@@ -551,6 +555,14 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   if (!fs.isOpened()) throw Error(what + ": not a readable detector model");
   if (fs["format"].empty() || static_cast<std::string>(fs["format"]) != "mvtwin-valve-detector")
     throw Error(what + ": not an mvtwin valve detector model");
+  return fs;
+}
+
+}  // namespace
+
+ValveDetector ValveDetector::load(const std::filesystem::path& path) {
+  const std::string what = path.string();
+  cv::FileStorage fs = open_model(path);
   if (static_cast<int>(fs["format_version"]) != 1)
     throw Error(what + ": detector model format version " + std::to_string(static_cast<int>(fs["format_version"])) +
                 " is not supported (1)");
@@ -598,17 +610,7 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
 }
 
 std::vector<std::pair<std::string, std::string>> ValveDetector::provenance(const std::filesystem::path& path) {
-  const std::string what = path.string();
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw Error(what + ": no such file");
-  cv::FileStorage fs;
-  try {
-    fs.open(what, cv::FileStorage::READ);
-  } catch (const cv::Exception& e) {
-    throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) + ")");
-  }
-  if (!fs.isOpened() || fs["format"].empty() || static_cast<std::string>(fs["format"]) != "mvtwin-valve-detector")
-    throw Error(what + ": not an mvtwin valve detector model");
+  const cv::FileStorage fs = open_model(path);
   std::vector<std::pair<std::string, std::string>> out;
   for (const cv::FileNode& n : fs["provenance"])
     if (n.isString()) out.emplace_back(n.name(), static_cast<std::string>(n));
