@@ -254,6 +254,29 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
     }
   }
   triangulate();
+  // A lattice point just under a steep, concave stretch of the free edge can lose every
+  // triangle to the clipping (seen on detected surfaces, whose commissures are sharper): it
+  // would be a node without an element, so it is dropped. The annulus points always stay.
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (const auto& t : sm.triangles)
+    for (int k = 0; k < 3; ++k) used[static_cast<std::size_t>(t[k])] = 1;
+  for (int a : sm.annulus_column) used[static_cast<std::size_t>(a)] = 1;
+  if (std::find(used.begin(), used.end(), 0) != used.end()) {
+    std::vector<int> remap(static_cast<std::size_t>(n), -1);
+    std::vector<Eigen::Vector2d> plane;
+    std::vector<char> edge_flag;
+    for (int i = 0; i < n; ++i) {
+      if (!used[static_cast<std::size_t>(i)]) continue;
+      remap[static_cast<std::size_t>(i)] = static_cast<int>(plane.size());
+      plane.push_back(sm.plane[static_cast<std::size_t>(i)]);
+      edge_flag.push_back(sm.free_edge[static_cast<std::size_t>(i)]);
+    }
+    for (auto& t : sm.triangles)
+      for (int k = 0; k < 3; ++k) t[k] = remap[static_cast<std::size_t>(t[k])];
+    for (int& a : sm.annulus_column) a = remap[static_cast<std::size_t>(a)];
+    sm.plane = std::move(plane);
+    sm.free_edge = std::move(edge_flag);
+  }
   for (const auto& q : sm.plane) sm.st.push_back(un.st(q.x(), q.y()));
   return sm;
 }
