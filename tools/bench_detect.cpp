@@ -130,7 +130,8 @@ void register_bench_detect(CLI::App& bench, Context& ctx) {
 
       // Resuming: rows of an earlier run with the same setup.
       const json setup{{"seed", *seed},   {"train", *n_train},           {"test", *n_test},
-                       {"truth_key", truth.key}, {"model_key", model_key}};
+                       {"truth_key", truth.key}, {"model_key", model_key},
+                       {"render", render_json(0.0)}};  // the test renders but their noise
       json runs = json::array();
       if (!json_path->empty() && fs::exists(*json_path)) {
         try {
