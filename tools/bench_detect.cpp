@@ -25,13 +25,10 @@
 #include "virtual_tee.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
-#include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/version.h"
-#include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/detection/tee_renderer.h"
 #include "mvtwin/detection/valve_detector.h"
 #include "mvtwin/forward/closure_settings.h"
-#include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -123,7 +120,7 @@ void register_bench_detect(CLI::App& bench, Context& ctx) {
                                               render_json(levels->front()).dump() + " " + detector_json.dump() +
                                               " train_noise=" + json(*train_noise).dump());
       auto patient_seed = [&](bool train, int i) {
-        return static_cast<std::uint64_t>(*seed) * 1000 + (train ? 0u : 500u) + static_cast<std::uint64_t>(i) + 1;
+        return virtual_cohort_seed(*seed, train ? i : 500 + i);  // test patients: 501, 502, ...
       };
       if (!cache->empty()) fs::create_directories(*cache);
       std::mutex io;  // console and HDF5 (not built thread-safe)

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <filesystem>
 #include <iostream>
-#include <limits>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -19,7 +18,6 @@
 #include "virtual_tee.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
-#include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/detection/valve_detector.h"
 
@@ -97,7 +95,7 @@ void register_detect(CLI::App& app, Context& ctx) {
           if (const std::string e = ro->invalid(); !e.empty()) throw Error("train-detector: " + e);
           std::vector<std::uint64_t> seeds;
           for (int i = 0; i < *n_virtual; ++i)
-            seeds.push_back(static_cast<std::uint64_t>(*cohort_seed) * 1000 + static_cast<std::uint64_t>(i) + 1);
+            seeds.push_back(virtual_cohort_seed(*cohort_seed, i));
           std::mutex io;
           const VirtualTrainingResult r =
               train_on_virtual_cohort(seeds, VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs, fs::path(*cache), io);

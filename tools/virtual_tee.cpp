@@ -40,10 +40,8 @@ std::pair<double, double> mean_sd(const std::vector<double>& v) {
 
 }  // namespace
 
-/// One test patient's detection at one noise level: per frame with a known surface, the
-/// surface error (symmetric point-to-mesh) and each observed landmark's distance.
 json detection_errors(const Patient& truth, const std::vector<ValveFrame>& detected,
-              const std::vector<detection::DetectionInfo>& info) {
+                      const std::vector<detection::DetectionInfo>& info) {
   json frames = json::array();
   for (std::size_t f = 0; f < detected.size(); ++f) {
     const ValveFrame& t = truth.sequence.frames[f];
@@ -69,8 +67,6 @@ json detection_errors(const Patient& truth, const std::vector<ValveFrame>& detec
   return frames;
 }
 
-/// The figures over a set of runs (one noise level): surface error over all frames with a known
-/// surface, by phase, per landmark, papillary tips, time per volume.
 json summarize_detections(const std::vector<const json*>& runs) {
   std::vector<double> all, seconds, papillary, patient_means;
   std::map<std::string, std::vector<double>> by_phase, by_landmark;
@@ -96,7 +92,6 @@ json summarize_detections(const std::vector<const json*>& runs) {
   json phase = json::object();
   for (const auto& [name, v] : by_phase) phase[name] = {{"error_mean_mm", mean_sd(v).first}, {"frames", v.size()}};
   const auto [m, sd] = mean_sd(all);
-  const auto [pm, psd] = mean_sd(patient_means);
   double worst = 0;
   for (double e : all) worst = std::max(worst, e);
   return {{"patients", runs.size()},
@@ -104,13 +99,12 @@ json summarize_detections(const std::vector<const json*>& runs) {
           {"error_mean_mm", m},
           {"error_sd_mm", sd},
           {"error_max_frame_mm", worst},
-          {"error_patient_mean_sd_mm", psd},
+          {"error_patient_mean_sd_mm", mean_sd(patient_means).second},
           {"by_phase", phase},
           {"landmark_error_mm", lm},
           {"papillary_error_mm", mean_sd(papillary).first},
           {"s_per_volume", mean_sd(seconds).first}};
 }
-
 
 VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
   closure.simulation = forward::ClosureOptions{};

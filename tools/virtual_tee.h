@@ -25,6 +25,12 @@ struct VirtualTeeTruth {
   std::string key;  ///< names cached truth files by the model that made them
 };
 
+/// Seed of patient i (0-based) of the virtual cohort `cohort_seed`: cohort_seed x 1000 + 1 + i,
+/// so that train-detector --virtual and bench detect draw the same patients (and share caches).
+inline std::uint64_t virtual_cohort_seed(std::uint64_t cohort_seed, int i) {
+  return cohort_seed * 1000 + static_cast<std::uint64_t>(i) + 1;
+}
+
 /// Virtual patient `seed` (pathology `i % kNumPathologies`) with its closing frames simulated.
 /// With a `cache` directory the patient is read from it when there, else written to it. `io`
 /// serializes HDF5 (not built thread-safe). Throws mvtwin::Error when the simulation fails.

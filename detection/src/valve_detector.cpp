@@ -35,6 +35,10 @@ struct Voxels {
     return Eigen::Vector3i(static_cast<int>(std::lround(i[0])), static_cast<int>(std::lround(i[1])),
                            static_cast<int>(std::lround(i[2])));
   }
+  /// The volume's centre, mm.
+  Eigen::Vector3d centre() const {
+    return world(Eigen::Vector3d(0.5 * (size[0] - 1), 0.5 * (size[1] - 1), 0.5 * (size[2] - 1)));
+  }
   bool inside(const Eigen::Vector3i& p) const {
     return p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < size[0] && p[1] < size[1] && p[2] < size[2];
   }
@@ -232,7 +236,7 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
     for (int l = 0; l < kNumLandmarks; ++l)
       m.landmark_offset[static_cast<std::size_t>(l)] += im.direction.transpose() * (f.landmarks[static_cast<std::size_t>(l)] - c);
     {
-      const Eigen::Vector3d mid = vx.world(Eigen::Vector3d(0.5 * (im.size[0] - 1), 0.5 * (im.size[1] - 1), 0.5 * (im.size[2] - 1)));
+      const Eigen::Vector3d mid = vx.centre();
       const Eigen::Vector3d off = im.direction.transpose() * (c - mid);
       m.centre_lo = m.has_centre_range ? Eigen::Vector3d(m.centre_lo.cwiseMin(off)) : off;
       m.centre_hi = m.has_centre_range ? Eigen::Vector3d(m.centre_hi.cwiseMax(off)) : off;
@@ -335,7 +339,7 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   } else {
     const int step = std::max(1, static_cast<int>(std::lround(o.position_step_mm / vx.voxel_mm)));
     const int margin = o.scales.back();
-    const Eigen::Vector3d mid = vx.world(Eigen::Vector3d(0.5 * (im.size[0] - 1), 0.5 * (im.size[1] - 1), 0.5 * (im.size[2] - 1)));
+    const Eigen::Vector3d mid = vx.centre();
     std::vector<Eigen::Vector3d> xs;
     for (int k = margin; k < im.size[2] - margin; k += step)
       for (int j = margin; j < im.size[1] - margin; j += step)
@@ -405,10 +409,9 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
     take(best);
     const Points3 placed = m.shape.place_mean(placing());
     const Eigen::Vector3d c2 = placed.topRows(m.shape.ures()).colwise().mean().transpose();
-    if ((c2 - centre).norm() >= 1.0 || hypotheses.size() > 1) {
-      centre = (c2 - centre).norm() >= 1.0 ? c2 : centre;
-      take(find_landmarks(centre, false, true));
-    }
+    const bool moved = (c2 - centre).norm() >= 1.0;
+    if (moved) centre = c2;
+    if (moved || hypotheses.size() > 1) take(find_landmarks(centre, false, true));  // refined
   }
 
   // 3. Surface: placed by the landmarks, refined along the normals, kept in the shape space.
