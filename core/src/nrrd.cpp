@@ -100,6 +100,11 @@ std::string fmt(const Eigen::Vector3d& v) {
 }  // namespace
 
 std::vector<ImageVolume> read_nrrd_series(const fs::path& path) {
+  return read_nrrd_series(path, nullptr);
+}
+
+std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
+                                          std::map<std::string, std::string>* key_values) {
   const std::string what = path.string();
   const std::string bytes = raw::read_file_bytes(path);
   if (bytes.compare(0, 7, "NRRD000") != 0)
@@ -279,11 +284,16 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path) {
         if (std::isfinite(s) && s > 0) dt = s;
       }
     }
+    // Slicer writes the index unit beside the values ("s", or "ms" for some ultrasound
+    // sequences); times are kept in s.
+    const std::string unit_key = "axis " + std::to_string(frame_axis) + " index unit";
+    const double scale = keyvalue.count(unit_key) && lower(trim(keyvalue[unit_key])) == "ms" ? 1e-3 : 1.0;
     for (long f = 0; f < nt; ++f) {
-      times[f] = static_cast<long>(tv.size()) == nt ? raw::number(tv[f], what + " (" + key + ")")
+      times[f] = static_cast<long>(tv.size()) == nt ? scale * raw::number(tv[f], what + " (" + key + ")")
                                                     : f * dt;
     }
   }
+  if (key_values) *key_values = keyvalue;
   std::vector<ImageVolume> out;
   for (long f = 0; f < nt; ++f) {
     ImageVolume im = geom;

@@ -6,6 +6,8 @@
 // writing (x and y change sign). A series is a list of volumes of one geometry, each with its
 // time in s.
 #include <filesystem>
+#include <map>
+#include <string>
 #include <vector>
 
 #include "mvtwin/core/image_volume.h"
@@ -31,6 +33,10 @@ void write_image_series(const std::filesystem::path& path, const std::vector<Ima
 /// ascii encoding; either endianness; 3D, or 4D with one non-spatial axis (list or time; first
 /// or last) holding the frames. Spaces RAS, LPS, LAS, or none ("spacings" only).
 std::vector<ImageVolume> read_nrrd_series(const std::filesystem::path& path);
+/// The same, also returning the header's key/value pairs ("key:=value" lines, such as 3D
+/// Slicer's SegmentN_Name of a .seg.nrrd file).
+std::vector<ImageVolume> read_nrrd_series(const std::filesystem::path& path,
+                                          std::map<std::string, std::string>* key_values);
 void write_nrrd_series(const std::filesystem::path& path, const std::vector<ImageVolume>& series);
 
 /// MetaImage: .mha (LOCAL data) or .mhd with a separate data file; MET_UCHAR ... MET_DOUBLE,
