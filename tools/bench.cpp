@@ -353,6 +353,7 @@ void register_bench(CLI::App& app, Context& ctx) {
   auto* bench = app.add_subcommand("bench", "Benchmarks: time and the error it costs");
   register_bench_calibrate(*bench, ctx);
   register_bench_detect(*bench, ctx);
+  register_bench_import(*bench, ctx);
   bench->require_subcommand(1);
 
   // ---- bench closure ----------------------------------------------------------------------

@@ -19,7 +19,8 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/patient_vtk.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
-#include "mvtwin/core/segmentation_import.h"
+#include "mvtwin/core/markups.h"
+#include "mvtwin/detection/label_map.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
@@ -35,6 +36,13 @@ namespace mvtwin::tools {
 namespace fs = std::filesystem;
 namespace {
 
+std::string name_of_landmark(Landmark l) {
+  std::string s(name(l));
+  for (char& c : s)
+    if (c == '_') c = ' ';
+  return s;
+}
+
 void refuse_overwrite(const fs::path& p, bool force) {
   if (fs::exists(p) && !force) {
     throw Error(p.string() + ": already exists (use --force to replace it)");
@@ -47,6 +55,14 @@ std::uint64_t cohort_seed(std::uint64_t seed, int i) {
   z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
   return (z ^ (z >> 31)) & 0x7FFFFFFFFFFFFFFFull;  // positive when stored as int64
+}
+
+/// The landmarks estimated from anatomy rather than observed: every report that uses them
+/// says so, because the papillary tips drive the closure.
+void print_assumed(const Patient& p, std::ostream& os) {
+  const std::string a = p.sequence.assumed_landmarks();
+  if (!a.empty())
+    os << "ASSUMED   " << a << ": estimated from published anatomy, not observed (they drive the closure)\n";
 }
 
 std::string fmt(double v, int prec = 2) {
@@ -90,6 +106,7 @@ void print_simulation_info(const SimulationRecord& r, std::ostream& os) {
 void print_info(const Patient& p, std::ostream& os) {
   const ValveSequence& s = p.sequence;
   os << "patient   " << p.id << (p.synthetic ? "   [SYNTHETIC: virtual patient]" : "") << "\n";
+  print_assumed(p, os);
   os << "source    " << p.provenance.source << "\n";
   os << "made by   mvtwin " << p.provenance.version << ", " << p.provenance.created_utc
      << (p.provenance.seed ? ", seed " + std::to_string(p.provenance.seed) : "") << "\n";
@@ -183,6 +200,7 @@ Patient read_patient_for_run(const fs::path& path, bool use_detected) {
     p.sequence = *p.detected;
     p.provenance.source.append("; sequence detected from images (").append(p.detected_by).append(")");
   }
+  print_assumed(p, std::cout);
   return p;
 }
 
@@ -350,23 +368,78 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- export ----------------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand("export", "Export a patient file to VTK for ParaView");
+    auto* cmd = app.add_subcommand("export", "Export a patient file to VTK for ParaView, or as label maps");
     cmd->footer(
-        "Example:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd "
-        "vtk/annulus.pvd vtk/landmarks.pvd");
+        "Examples:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd "
+        "vtk/annulus.pvd vtk/landmarks.pvd\n"
+        "  mvtwin export patient.h5 --labelmap seg/ --convention mvseg --voxel 0.8\n"
+        "--labelmap writes each frame with a leaflet surface (or --frames I,J) as a NIfTI label map\n"
+        "(leaflets extruded by their thickness, partial-volume boundary noise --boundary-noise, seeded\n"
+        "by --seed) and its papillary tips as a 3D Slicer markups file, ready for mvtwin import.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
+    auto labeldir = std::make_shared<std::string>();
+    auto convention = std::make_shared<std::string>("mvtool");
+    auto lo = std::make_shared<detection::LabelMapOptions>();
+    auto frames = std::make_shared<std::vector<int>>();
     auto force = std::make_shared<bool>(false);
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
-    cmd->add_option("--vtk", *dir, "output directory")->required();
-    cmd->add_flag("--force", *force, "write into a directory that already has .pvd files");
+    cmd->add_option("--vtk", *dir, "output directory for VTK");
+    cmd->add_option("--labelmap", *labeldir, "output directory for label maps and markups");
+    cmd->add_option("--convention", *convention, "with --labelmap: mvtool or mvseg")->default_val("mvtool");
+    cmd->add_option("--voxel", lo->voxel_mm, "with --labelmap: voxel size, mm")->default_val(lo->voxel_mm);
+    cmd->add_option("--boundary-noise", lo->boundary_noise, "with --labelmap: partial-volume noise SD")
+        ->default_val(lo->boundary_noise);
+    cmd->add_option("--seed", lo->seed, "with --labelmap: seed of the boundary noise")->default_val(lo->seed);
+    cmd->add_option("--frames", *frames, "with --labelmap: frame indices (default: every frame with leaflets)")->delimiter(',');
+    cmd->add_flag("--force", *force, "write into a directory that already has output files");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
+        if (dir->empty() && labeldir->empty()) throw Error("export: give --vtk DIR and/or --labelmap DIR");
         const Patient p = read_patient(*file, false);
-        refuse_overwrite(fs::path(*dir) / "la_surface.pvd", *force);
-        const auto files = export_patient_vtk(p, *dir);
-        std::cout << "wrote " << files.size() << " VTK files to " << *dir
-                  << " (open la_surface.pvd, annulus.pvd, landmarks.pvd in ParaView)\n";
+        if (!dir->empty()) {
+          refuse_overwrite(fs::path(*dir) / "la_surface.pvd", *force);
+          const auto files = export_patient_vtk(p, *dir);
+          std::cout << "wrote " << files.size() << " VTK files to " << *dir
+                    << " (open la_surface.pvd, annulus.pvd, landmarks.pvd in ParaView)\n";
+        }
+        if (!labeldir->empty()) {
+          detection::LabelMapOptions o = *lo;
+          o.labels = detection::segmentation_labels(*convention);
+          std::vector<int> which = *frames;
+          if (which.empty())
+            for (int f = 0; f < p.sequence.num_frames(); ++f)
+              if (p.sequence.frames[f].la_surface) which.push_back(f);
+          if (which.empty()) throw Error(*file + ": no frame has a leaflet surface to export");
+          fs::create_directories(*labeldir);
+          std::string cmdline = "mvtwin import";
+          for (int f : which) {
+            if (f < 0 || f >= p.sequence.num_frames()) throw Error("--frames: no frame " + std::to_string(f));
+            const ValveFrame& fr = p.sequence.frames[f];
+            if (!fr.la_surface) throw Error(*file + ": frame " + std::to_string(f) + " has no leaflet surface");
+            char name[64];
+            std::snprintf(name, sizeof name, "frame_%02d.nii.gz", f);
+            const fs::path img = fs::path(*labeldir) / name;
+            refuse_overwrite(img, *force);
+            o.seed = lo->seed + static_cast<std::uint64_t>(f);
+            write_nifti(img, detection::valve_label_map(fr, o));
+            std::snprintf(name, sizeof name, "tips_%02d.mrk.json", f);
+            const fs::path mk = fs::path(*labeldir) / name;
+            std::vector<MarkupPoint> pts;
+            for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
+              if (fr.observed(l)) pts.push_back({std::string(name_of_landmark(l)), fr.landmark(l)});
+            char t[32];
+            std::snprintf(t, sizeof t, "%.4f", fr.time_s);
+            cmdline += " --frame " + img.string() + "@" + t;
+            if (!pts.empty()) {
+              write_markups_json(mk, pts);
+              cmdline += " --markups " + mk.string() + "@" + t;
+            }
+          }
+          std::cout << "wrote " << which.size() << " label map(s) (" << o.labels.describe() << ", " << o.voxel_mm
+                    << " mm voxels" << (p.synthetic ? ", SYNTHETIC: from a virtual patient" : "") << ") to " << *labeldir
+                    << "\nimport them with:\n  " << cmdline << " --convention " << *convention << " --out imported.h5\n";
+        }
         return 0;
       };
     });
@@ -569,56 +642,6 @@ void register_commands(CLI::App& app, Context& ctx) {
         line("A -> B:    ", d.a_to_b);
         line("B -> A:    ", d.b_to_a);
         line("symmetric: ", d.symmetric);
-        return 0;
-      };
-    });
-  }
-  // ---- import-seg ------------------------------------------------------------------------------
-  {
-    auto* cmd = app.add_subcommand("import-seg",
-                                   "Fit the valve model to a NIfTI label map of a closed valve");
-    cmd->footer(
-        "Example:\n  mvtwin import-seg 008_gt.nii.gz --out 008.h5 --labels 1,2,3\n"
-        "Labels are annulus,anterior,posterior (default 1,2,3, the mvtool convention).");
-    auto file = std::make_shared<std::string>();
-    auto out = std::make_shared<std::string>();
-    auto labels = std::make_shared<std::vector<int>>(std::vector<int>{1, 2, 3});
-    auto atrium = std::make_shared<std::vector<double>>();
-    auto opts = std::make_shared<SegmentationImportOptions>();
-    auto force = std::make_shared<bool>(false);
-    cmd->add_option("LABELMAP", *file, "NIfTI label map (.nii or .nii.gz)")->required();
-    cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
-    cmd->add_option("--labels", *labels, "label values of annulus,anterior,posterior")
-        ->delimiter(',')
-        ->expected(3);
-    cmd->add_option("--atrium", *atrium,
-                    "direction into the left atrium in image space, x,y,z (default: inferred)")
-        ->delimiter(',')
-        ->expected(3);
-    add_grid_options(cmd, opts->ures, opts->vres);
-    cmd->add_flag("--force", *force, "replace an existing file");
-    cmd->callback([=, &ctx] {
-      ctx.run = [=, &ctx] {
-        refuse_overwrite(*out, *force);
-        SegmentationImportOptions o = *opts;
-        o.labels = {(*labels)[0], (*labels)[1], (*labels)[2]};
-        if (!atrium->empty())
-          o.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
-        const ImageVolume im = read_nifti(*file);
-        SegmentationImport r = import_segmentation(im, *file, o);
-        r.patient.provenance.command = ctx.command_line;
-        write_patient(*out, r.patient);
-        std::cout << "wrote " << *out << " from " << *file << "\n";
-        std::cout << "  voxels: annulus " << r.annulus_voxels << ", anterior " << r.anterior_voxels
-                  << ", posterior " << r.posterior_voxels << "\n";
-        auto line = [&](const char* what, const DistanceStats& d) {
-          std::cout << "  " << what << fmt(d.mean) << " +- " << fmt(d.sd) << " mm (95th pct "
-                    << fmt(d.p95) << ", max " << fmt(d.max) << ", n=" << d.count << ")\n";
-        };
-        line("fitted surface -> mask boundary:      ", r.surface_to_mask);
-        line("atrial mask boundary -> fitted surface: ", r.mask_to_surface);
-        line("fitted annulus -> annulus voxels:     ", r.annulus_to_mask);
-        for (const auto& n : r.notes) std::cout << "  note: " << n << "\n";
         return 0;
       };
     });

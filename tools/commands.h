@@ -30,10 +30,14 @@ void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* options);
 void register_bench_calibrate(CLI::App& bench, Context& ctx);
 /// mvtwin bench detect (tools/bench_detect.cpp), under the bench command.
 void register_bench_detect(CLI::App& bench, Context& ctx);
+/// mvtwin bench import (tools/bench_import.cpp), under the bench command.
+void register_bench_import(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).
 void register_clip(CLI::App& app, Context& ctx);
 /// mvtwin train-detector and mvtwin detect (tools/detect.cpp).
 void register_detect(CLI::App& app, Context& ctx);
+/// mvtwin import (tools/import.cpp).
+void register_import(CLI::App& app, Context& ctx);
 /// mvtwin render-tee (tools/render_tee.cpp).
 void register_render_tee(CLI::App& app, Context& ctx);
 /// Reads a patient file; with `use_detected` its detected sequence (mvtwin detect) replaces the

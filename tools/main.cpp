@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   mvtwin::tools::register_clip(app, ctx);
   mvtwin::tools::register_render_tee(app, ctx);
   mvtwin::tools::register_detect(app, ctx);
+  mvtwin::tools::register_import(app, ctx);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

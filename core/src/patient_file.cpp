@@ -41,12 +41,13 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
   g.attr("grid_convention", std::string(kGridConvention));
 
   std::vector<double> t(F), lm(F * 9 * 3), ann(F * U * 3), surf(F * V * U * 3, kNaN);
-  std::vector<std::uint8_t> lm_obs(F * 9), leaf_obs(F);
+  std::vector<std::uint8_t> lm_obs(F * 9), lm_assumed(F * 9), leaf_obs(F);
   for (hsize_t f = 0; f < F; ++f) {
     const ValveFrame& fr = seq.frames[f];
     t[f] = fr.time_s;
     for (int l = 0; l < kNumLandmarks; ++l) {
       lm_obs[f * 9 + l] = fr.landmark_observed[l];
+      lm_assumed[f * 9 + l] = fr.landmark_observed[l] && fr.landmark_assumed[l];
       for (int k = 0; k < 3; ++k)
         lm[(f * 9 + l) * 3 + k] = fr.landmark_observed[l] ? fr.landmarks[l][k] : kNaN;
     }
@@ -66,6 +67,11 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
   g.attr("description", std::string("landmark positions, NaN where landmark_observed is 0"),
          "landmarks");
   g.write("landmark_observed", lm_obs, {F, 9});
+  g.write("landmark_assumed", lm_assumed, {F, 9});
+  g.attr("description",
+         std::string("1 where a present landmark was not seen but estimated from published anatomy "
+                     "(ASSUMED: it drives the closure, check it)"),
+         "landmark_assumed");
   std::vector<std::string> names(kLandmarkNames.begin(), kLandmarkNames.end());
   g.write_strings("landmark_names", names);
   g.write("annulus", ann, {F, U, 3}, units::kLength);
@@ -101,6 +107,9 @@ ValveSequence read_sequence(const h5::Location& root) {
   const long U = seq.ures, V = seq.vres;
   const auto lm = g.read_doubles("landmarks", &d, {F, 9, 3}, "(F, 9, 3)");
   const auto lm_obs = g.read_ints("landmark_observed", &d, {F, 9}, "(F, 9)");
+  // Files written before landmark_assumed existed have none assumed.
+  const auto lm_assumed = g.exists("landmark_assumed") ? g.read_ints("landmark_assumed", &d, {F, 9}, "(F, 9)")
+                                                       : decltype(lm_obs)(lm_obs.size(), 0);
   const auto ann = g.read_doubles("annulus", &d, {F, U, 3}, "(F, ures, 3)");
   const auto leaf_obs = g.read_ints("leaflet_observed", &d, {F}, "(F)");
   const auto surf = g.read_doubles("la_surface", &d, {F, V, U, 3}, "(F, vres, ures, 3)");
@@ -111,6 +120,7 @@ ValveSequence read_sequence(const h5::Location& root) {
     fr.time_s = t[f];
     for (int l = 0; l < kNumLandmarks; ++l) {
       fr.landmark_observed[l] = lm_obs[f * 9 + l] != 0;
+      fr.landmark_assumed[l] = fr.landmark_observed[l] && lm_assumed[f * 9 + l] != 0;
       for (int k = 0; k < 3; ++k) fr.landmarks[l][k] = lm[(f * 9 + l) * 3 + k];
       if (fr.landmark_observed[l] && !fr.landmarks[l].allFinite()) {
         g.fail("landmarks", "frame " + std::to_string(f) + ", landmark " +

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 
+#include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/rng.h"
 
@@ -77,8 +78,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   const bool with_papillary =
       o.labels.papillary != 0 && frame.observed(Landmark::kAnterolateralPapillaryTip) &&
       frame.observed(Landmark::kPosteromedialPapillaryTip);
-  const Eigen::Vector3d atrial =
-      -(nrm.colwise().sum()).transpose().normalized();  // mean normal points to the ventricle
+  const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
   Eigen::Vector3d papillary_centre[2];
   if (with_papillary) {
     papillary_centre[0] = frame.landmark(Landmark::kAnterolateralPapillaryTip) - o.papillary_radius_mm * atrial;

@@ -14,6 +14,7 @@
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/detection/label_map.h"
+#include "mvtwin/detection/patient_import.h"
 #include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::detection {
@@ -293,6 +294,96 @@ TEST(SegmentationFit, RealValveMvtool008) {
   EXPECT_LT(gt.rim_to_label_voxels->mean, 1.5);
   EXPECT_LT(gt.rim_vs_label->mean, 2.5);
   EXPECT_LT((gt.frame.annulus.row(0) - pred.frame.annulus.row(0)).norm(), 6.0);
+}
+
+TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
+  const Patient& p = closed_patient(1);
+  const ValveSequence& s = p.sequence;
+  LabelMapOptions lo;
+  lo.labels = segmentation_labels("mvtool");
+  lo.labels.papillary = 4;
+  lo.voxel_mm = 0.8;
+  std::vector<LabelFrame> frames;
+  for (int f : {s.first_closed, s.end_diastole}) {  // out of order on purpose
+    lo.seed = static_cast<std::uint64_t>(f);
+    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt});
+  }
+  PatientImportOptions o;
+  o.fit.labels = lo.labels;
+  const PatientImport r = import_patient(frames, {}, o);
+  const ValveSequence& q = r.patient.sequence;
+  ASSERT_EQ(q.num_frames(), 2);
+  EXPECT_EQ(q.end_diastole, 0);  // the open frame, found from the orifice
+  EXPECT_EQ(q.first_closed, 1);
+  EXPECT_GT(r.fits[0].orifice_area_mm2, 5 * r.fits[1].orifice_area_mm2);
+  EXPECT_FALSE(r.patient.synthetic);
+  EXPECT_TRUE(r.assumed.empty());
+  for (int k = 0; k < 2; ++k) {
+    const ValveFrame& truth = s.frames[k ? s.first_closed : s.end_diastole];
+    for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip}) {
+      EXPECT_FALSE(q.frames[k].assumed(l));
+      EXPECT_LT((q.frames[k].landmark(l) - truth.landmark(l)).norm(), 1.0) << name(l) << " frame " << k;
+    }
+  }
+  // Without the papillary label the tips are assumed, said so, and near the truth's anatomy.
+  for (auto& f : frames) f.labels_override = segmentation_labels("mvtool");
+  const PatientImport a = import_patient(frames, {}, o);
+  EXPECT_TRUE(a.patient.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
+  EXPECT_EQ(a.patient.sequence.assumed_landmarks(), "anterolateral_papillary_tip, posteromedial_papillary_tip");
+  EXPECT_EQ(a.assumed.size(), 2u);
+  EXPECT_NE(a.patient.provenance.source.find("ASSUMED"), std::string::npos);
+  const double err = (a.patient.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip) -
+                      s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip)).norm();
+  std::cout << "assumed anterolateral tip vs the virtual patient's: " << err << " mm\n";
+  EXPECT_LT(err, 12.0);
+  // Landmarks given in one frame win there and are held (assumed) in the other.
+  const Eigen::Vector3d tip = s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip);
+  const PatientImport g = import_patient(frames, {{Landmark::kAnterolateralPapillaryTip, tip, s.frames[s.end_diastole].time_s, "tips.mrk.json"}}, o);
+  EXPECT_EQ(g.patient.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip), tip);
+  EXPECT_FALSE(g.patient.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
+  EXPECT_TRUE(g.patient.sequence.frames[1].assumed(Landmark::kAnterolateralPapillaryTip));
+  // Markups in another space (here: IJK indices) are refused.
+  EXPECT_THROW(import_patient(frames, {{Landmark::kAnterolateralPapillaryTip, Eigen::Vector3d(150, 160, 40), std::nullopt, "ijk.mrk.json"}}, o),
+               Error);
+  // Duplicate times, and frames of another patient (grids that disagree), are refused.
+  std::vector<LabelFrame> dup = frames;
+  dup[1].time_s = dup[0].time_s;
+  EXPECT_THROW(import_patient(dup, {}, o), Error);
+  std::vector<LabelFrame> mixed = frames;
+  mixed[0].labels = valve_label_map(closed_patient(2).sequence.frames[closed_patient(2).sequence.first_closed], lo);
+  try {
+    import_patient(mixed, {}, o);
+    FAIL() << "expected frames of two patients to be refused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("disagree"), std::string::npos) << e.what();
+  }
+}
+
+TEST(PatientImport, MarkupLabels) {
+  EXPECT_EQ(landmark_from_label("Anterolateral papillary tip"), Landmark::kAnterolateralPapillaryTip);
+  EXPECT_EQ(landmark_from_label("ALPM"), Landmark::kAnterolateralPapillaryTip);
+  EXPECT_EQ(landmark_from_label("PM papillary"), Landmark::kPosteromedialPapillaryTip);
+  EXPECT_EQ(landmark_from_label("posteromedial_papillary_tip"), Landmark::kPosteromedialPapillaryTip);
+  EXPECT_EQ(landmark_from_label("left trigone"), Landmark::kAnterolateralTrigone);
+  EXPECT_EQ(landmark_from_label("PM commissure"), Landmark::kPosteromedialCommissure);
+  EXPECT_EQ(landmark_from_label("Posterior annulus midpoint"), Landmark::kPosteriorAnnulusMidpoint);
+  EXPECT_FALSE(landmark_from_label("F-1"));
+  MarkupList m;
+  m.points = {{"F-1", {1, 2, 3}}, {"F-2", {4, 5, 6}}};
+  const auto two = landmarks_from_markups(m, "tips.fcsv", std::nullopt);  // two unlabelled: the tips, in order
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[1].landmark, Landmark::kPosteromedialPapillaryTip);
+  m.points.push_back({"F-3", {7, 8, 9}});
+  EXPECT_THROW(landmarks_from_markups(m, "three.fcsv", std::nullopt), Error);
+  const auto ordered = landmarks_from_markups(
+      m, "three.fcsv", 0.1, {Landmark::kAnterolateralTrigone, Landmark::kPosteromedialTrigone, Landmark::kAnterolateralPapillaryTip});
+  EXPECT_EQ(ordered[2].landmark, Landmark::kAnterolateralPapillaryTip);
+  EXPECT_EQ(*ordered[2].time_s, 0.1);
+  EXPECT_EQ(segment_role("Anterior Leaflet"), "anterior");
+  EXPECT_EQ(segment_role("mitral_annulus"), "annulus");
+  EXPECT_EQ(segment_role("PML"), "posterior");
+  EXPECT_EQ(segment_role("Papillary muscles"), "papillary");
+  EXPECT_EQ(segment_role("aorta"), "");
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // End-to-end tests of the mvtwin command line, run as a user would.
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,11 +10,19 @@
 
 #include <gtest/gtest.h>
 
+#include "mvtwin/core/nifti.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
+
 #include "mvtwin/core/patient_file.h"
 
 namespace {
 
 namespace fs = std::filesystem;
+using mvtwin::ImageVolume;
+using mvtwin::Landmark;
+using mvtwin::Patient;
+using mvtwin::SymmetricDistance;
+using mvtwin::symmetric_surface_distance;
 
 struct CmdResult {
   int code;
@@ -48,7 +57,7 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import-seg", "distance", "export-model", "simulate",
+  for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model", "simulate",
                         "calibrate", "clip"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
@@ -98,7 +107,7 @@ TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {
   r = run("phantom --pathology flu --out " + path("x.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown pathology 'flu'"), std::string::npos) << r.err;
-  r = run("import-seg " + path("none.nii.gz") + " --out " + path("x.h5"));
+  r = run("import --frame " + path("none.nii.gz") + " --out " + path("x.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("none.nii.gz: no such file"), std::string::npos) << r.err;
   r = run("frobnicate");
@@ -196,23 +205,114 @@ TEST_F(Cli, ImportRealSegmentation) {
   const fs::path seg = fs::path(MVTWIN_SHARED_DATA_DIR) / "mvtool-008" / "008_gt.nii.gz";
   if (!fs::exists(seg))
     GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
-  CmdResult r = run("import-seg " + seg.string() + " --out " + path("008.h5"));
+  CmdResult r = run("import --frame " + seg.string() + " --out " + path("008.h5") + " --json " + path("008.json"));
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("fitted surface -> mask boundary"), std::string::npos);
+  EXPECT_NE(r.out.find("surface -> mask"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("the leaflet rim is"), std::string::npos) << r.out;  // both annuli reported
+  EXPECT_TRUE(fs::exists(path("008.json")));
   r = run("info " + path("008.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.find("SYNTHETIC"), std::string::npos);  // real data is never labelled synthetic
+  EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;  // the papillary tips
   const fs::path pred = seg.parent_path() / "008_pred.nii.gz";
-  ASSERT_EQ(run("import-seg " + pred.string() + " --out " + path("pred.h5")).code, 0);
+  ASSERT_EQ(run("import --frame " + pred.string() + " --out " + path("pred.h5")).code, 0);
+  ASSERT_EQ(run("import --frame " + seg.string() + " --no-annulus-label --out " + path("rim.h5")).code, 0);
   r = run("distance " + path("008.h5") + " " + path("pred.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("symmetric: "), std::string::npos);
   // A surface against itself is at distance zero.
   r = run("distance " + path("008.h5") + " " + path("008.h5"));
   EXPECT_NE(r.out.find("symmetric: 0.00 +- 0.00 mm"), std::string::npos) << r.out;
-  r = run("import-seg " + seg.string() + " --labels 1,2,9 --out " + path("bad.h5"));
+  r = run("import --frame " + seg.string() + " --labels 2,9,1 --out " + path("bad.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("label 9 (posterior leaflet) has 0 voxels"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("bad.h5")));
+  // One closed frame: simulate refuses it clearly.
+  r = run("simulate " + path("008.h5") + " --out " + path("sim.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("end-diastolic frame"), std::string::npos) << r.err;
+}
+
+// The real-patient path on label maps and markups written from a virtual patient: export,
+// import (open and closed frames, tips from markups), simulate.
+TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "a closure simulation takes too long under AddressSanitizer";
+#endif
+  CmdResult r = run("phantom --seed 4 --simulate-closure --noise 0 --closure-set ures=16 --closure-set vres=10 "
+                    "--closure-set dt=0.01 --closure-set layers=1 --out " + path("v.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Patient v = mvtwin::read_patient(path("v.h5"));
+  const int ed = v.sequence.end_diastole, fc = v.sequence.first_closed;
+  r = run("export " + path("v.h5") + " --labelmap " + path("seg") + " --convention mvseg --voxel 0.8 --frames " +
+          std::to_string(ed) + "," + std::to_string(fc));
+  ASSERT_EQ(r.code, 0) << r.err;
+  char name[64];
+  std::snprintf(name, sizeof name, "seg/frame_%02d.nii.gz", ed);
+  const std::string f_ed = path(name);
+  std::snprintf(name, sizeof name, "seg/frame_%02d.nii.gz", fc);
+  const std::string f_fc = path(name);
+  std::snprintf(name, sizeof name, "seg/tips_%02d.mrk.json", ed);
+  const std::string m_ed = path(name);
+  char t_ed[32], t_fc[32];
+  std::snprintf(t_ed, sizeof t_ed, "%.4f", v.sequence.frames[ed].time_s);
+  std::snprintf(t_fc, sizeof t_fc, "%.4f", v.sequence.frames[fc].time_s);
+  // Duplicate frame times are refused, and nothing is written.
+  r = run("import --convention mvseg --frame " + f_ed + "@0.1 --frame " + f_fc + "@0.1 --out " + path("dup.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("have the same time"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("dup.h5")));
+  r = run("import --convention mvseg --frame " + f_fc + "@" + t_fc + " --frame " + f_ed + "@" + t_ed + " --markups " + m_ed + "@" + t_ed +
+          " --out " + path("imp.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("[end-diastole]"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("[first closed]"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("annulus: leaflet rim"), std::string::npos) << r.out;
+  const Patient imp = mvtwin::read_patient(path("imp.h5"));
+  EXPECT_FALSE(imp.synthetic);
+  ASSERT_EQ(imp.sequence.num_frames(), 2);
+  EXPECT_EQ(imp.sequence.end_diastole, 0);
+  EXPECT_EQ(imp.sequence.first_closed, 1);
+  // The tips came from the markups (held in the closed frame, which had none: noted as assumed).
+  EXPECT_FALSE(imp.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
+  EXPECT_LT((imp.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip) -
+             v.sequence.frames[ed].landmark(Landmark::kAnterolateralPapillaryTip)).norm(), 1e-3);
+  EXPECT_TRUE(imp.sequence.frames[1].assumed(Landmark::kAnterolateralPapillaryTip));
+  // Each imported surface lies on the virtual one.
+  for (int k = 0; k < 2; ++k) {
+    const SymmetricDistance d = symmetric_surface_distance(imp.sequence.frames[k].la_surface->triangulate(),
+                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    EXPECT_LT(d.symmetric.mean, 0.5) << "frame " << k;
+  }
+  // The end-diastolic map as 3D Slicer writes a segmentation: .seg.nrrd, LPS, unsigned char,
+  // segments found by their names (no --labels): it lands where the NIfTI (RAS) one does.
+  {
+    const ImageVolume im = mvtwin::read_nifti(f_ed);
+    std::ofstream o(path("ed.seg.nrrd"), std::ios::binary);
+    auto vec = [](const Eigen::Vector3d& x) {
+      char b[128];
+      std::snprintf(b, sizeof b, "(%.17g,%.17g,%.17g)", x.x(), x.y(), x.z());
+      return std::string(b);
+    };
+    const Eigen::Vector3d flip(-1, -1, 1);
+    o << "NRRD0004\n# Complete NRRD file format specification at:\n# http://teem.sourceforge.net/nrrd/format.html\n"
+      << "type: unsigned char\ndimension: 3\nspace: left-posterior-superior\nsizes: " << im.size[0] << " "
+      << im.size[1] << " " << im.size[2] << "\nspace directions:";
+    for (int k = 0; k < 3; ++k) o << " " << vec(flip.cwiseProduct(im.direction.col(k) * im.spacing[k]));
+    o << "\nkinds: domain domain domain\nencoding: raw\nspace origin: " << vec(flip.cwiseProduct(im.origin)) << "\n"
+      << "Segment0_Color:=0.5 0.7 0.3\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n"
+      << "Segment0_Name:=Posterior leaflet\nSegment1_ID:=Segment_2\nSegment1_LabelValue:=2\nSegment1_Layer:=0\n"
+      << "Segment1_Name:=Anterior leaflet\nSegmentation_MasterRepresentation:=Binary labelmap\n\n";
+    for (float label : im.data) o.put(static_cast<char>(static_cast<unsigned char>(std::lround(label))));
+  }
+  r = run("import --frame " + path("ed.seg.nrrd") + "@" + t_ed + " --frame " + f_fc + "@" + t_fc +
+          " --convention mvseg --markups " + m_ed + "@" + t_ed + " --out " + path("seg.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Patient seg = mvtwin::read_patient(path("seg.h5"));
+  EXPECT_LT((seg.sequence.frames[0].la_surface->points() - imp.sequence.frames[0].la_surface->points()).cwiseAbs().maxCoeff(), 1e-6);
+  r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;
 }
 
 }  // namespace

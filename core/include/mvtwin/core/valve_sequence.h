@@ -1,6 +1,7 @@
 #pragma once
 #include <array>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -18,6 +19,10 @@ struct ValveFrame {
   /// this frame is NaN and has landmark_observed false.
   std::array<Eigen::Vector3d, kNumLandmarks> landmarks;
   std::array<bool, kNumLandmarks> landmark_observed{};
+  /// True where a landmark that is present (landmark_observed) was not seen in the images but
+  /// estimated from published anatomy (an imported patient's papillary tips, for example).
+  /// Every report that uses it says so.
+  std::array<bool, kNumLandmarks> landmark_assumed{};
   /// The annulus curve: ures by 3, the v = 0 row of the grid. Always present, because the
   /// annulus motion is a boundary condition even in frames whose leaflets are not observed.
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus;
@@ -27,6 +32,7 @@ struct ValveFrame {
 
   Eigen::Vector3d landmark(Landmark l) const { return landmarks[index(l)]; }
   bool observed(Landmark l) const { return landmark_observed[index(l)]; }
+  bool assumed(Landmark l) const { return landmark_assumed[index(l)]; }
 };
 
 /// A valve over time: what detection produces and what the forward model consumes
@@ -41,6 +47,8 @@ struct ValveSequence {
   int first_closed = -1;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
+  /// Names of the landmarks assumed (estimated from anatomy) in any frame, "" when none.
+  std::string assumed_landmarks() const;
 
   /// Throws mvtwin::Error naming `what` and the first problem: inconsistent resolutions or
   /// shapes, non-finite coordinates, times not strictly increasing, phase indices out of

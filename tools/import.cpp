@@ -1,0 +1,263 @@
+// mvtwin import: a real patient from label maps (NIfTI, NRRD, 3D Slicer .seg.nrrd / .seq.nrrd,
+// MetaImage), 3D or 3D+t, and landmarks from 3D Slicer markups.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/image_io.h"
+#include "mvtwin/core/markups.h"
+#include "mvtwin/core/nifti.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/detection/patient_import.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+namespace {
+
+/// "file@time" -> (file, time); no '@' (or a '@' that is part of the path) -> no time.
+std::pair<std::string, std::optional<double>> split_time(const std::string& arg) {
+  const auto at = arg.rfind('@');
+  if (at == std::string::npos || at + 1 == arg.size()) return {arg, std::nullopt};
+  const std::string t = arg.substr(at + 1);
+  char* end = nullptr;
+  const double v = std::strtod(t.c_str(), &end);
+  if (end == t.c_str() || *end != '\0') return {arg, std::nullopt};
+  if (!std::isfinite(v) || v < 0) throw Error(arg + ": the frame time '" + t + "' must be a finite time >= 0 in s");
+  return {arg.substr(0, at), v};
+}
+
+bool ends_with(std::string s, const std::string& e) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
+}
+
+/// Reads the label maps of one file: a 3D map, a 3D+t sequence (4D NIfTI, Slicer .seq.nrrd,
+/// 4D MetaImage), or a Slicer segmentation (.seg.nrrd) whose segment names give the labels.
+std::vector<detection::LabelFrame> read_label_file(const std::string& file, std::optional<double> time, bool sequence,
+                                                   bool explicit_labels) {
+  if (!fs::exists(file)) throw Error(file + ": no such file");
+  std::vector<detection::LabelFrame> out;
+  std::map<std::string, std::string> kv;
+  std::vector<ImageVolume> vols;
+  if (ends_with(file, ".nrrd") || ends_with(file, ".nhdr")) {
+    vols = read_nrrd_series(file, &kv);
+  } else {
+    vols = read_image_series(file);
+  }
+  const bool segmentation = kv.count("Segment0_LabelValue") || kv.count("Segment0_Name");
+  if (segmentation && !explicit_labels) {
+    // 3D Slicer segmentation: segments (name, label value, layer); overlapping segments are in
+    // layers, read here as the 4th axis.
+    std::map<std::string, std::pair<int, int>> role;  // role -> (layer, value)
+    std::string names;
+    for (int s = 0; kv.count("Segment" + std::to_string(s) + "_Name") || kv.count("Segment" + std::to_string(s) + "_LabelValue"); ++s) {
+      const std::string k = "Segment" + std::to_string(s) + "_";
+      const std::string nm = kv.count(k + "Name") ? kv[k + "Name"] : "";
+      const int value = kv.count(k + "LabelValue") ? std::stoi(kv[k + "LabelValue"]) : s + 1;
+      const int layer = kv.count(k + "Layer") ? std::stoi(kv[k + "Layer"]) : 0;
+      names += (names.empty() ? "'" : ", '") + nm + "'";
+      const std::string r = detection::segment_role(nm);
+      if (r.empty()) continue;
+      if (role.count(r)) throw Error(file + ": two segments are the " + r + " (" + names + "); give --labels");
+      if (layer < 0 || layer >= static_cast<int>(vols.size()))
+        throw Error(file + ": segment '" + nm + "' is on layer " + std::to_string(layer) + " of " + std::to_string(vols.size()));
+      role[r] = {layer, value};
+    }
+    if (!role.count("anterior") || !role.count("posterior")) {
+      throw Error(file + ": the segment names (" + names +
+                  ") name no anterior and posterior leaflet; rename them (e.g. 'anterior leaflet') or give --labels");
+    }
+    ImageVolume merged = vols[0];
+    std::fill(merged.data.begin(), merged.data.end(), 0.0f);
+    const std::map<std::string, float> code = {{"annulus", 1.f}, {"anterior", 2.f}, {"posterior", 3.f}, {"papillary", 4.f}};
+    for (const auto& [r, lv] : role) {
+      const auto& src = vols[static_cast<size_t>(lv.first)].data;
+      for (size_t v = 0; v < src.size(); ++v)
+        if (std::lround(src[v]) == lv.second) merged.data[v] = code.at(r);
+    }
+    detection::SegmentationLabels labels{2, 3, role.count("annulus") ? 1 : 0, role.count("papillary") ? 4 : 0, "segment names"};
+    out.push_back({std::move(merged), time.value_or(0.0), file, labels});
+    return out;
+  }
+  if (vols.size() > 1 && !sequence) {
+    throw Error(file + ": holds " + std::to_string(vols.size()) + " frames; give it with --sequence (3D+t), not --frame");
+  }
+  for (size_t f = 0; f < vols.size(); ++f) {
+    const double t = vols.size() > 1 ? vols[f].time_s : time.value_or(vols[f].time_s);
+    out.push_back({std::move(vols[f]), t, vols.size() > 1 ? file + "[" + std::to_string(f) + "]" : file, std::nullopt});
+  }
+  return out;
+}
+
+std::string fmt(double v, int prec = 2) {
+  if (std::isnan(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+nlohmann::json stats_json(const DistanceStats& d) {
+  return {{"mean_mm", d.mean}, {"sd_mm", d.sd}, {"p95_mm", d.p95}, {"max_mm", d.max}, {"count", d.count}};
+}
+
+}  // namespace
+
+void register_import(CLI::App& app, Context& ctx) {
+  auto* cmd = app.add_subcommand("import", "Build a real patient from segmentations (label maps) and landmarks");
+  cmd->footer(
+      "Examples:\n"
+      "  mvtwin import --frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json --out p.h5\n"
+      "  mvtwin import --sequence valve.seq.nrrd --convention mvseg --papillary-label 4 --out p.h5\n"
+      "  mvtwin import --frame 008_gt.nii.gz --out 008.h5          # one closed frame: measured, not simulated\n"
+      "Label maps: .nii/.nii.gz (3D, or 4D with --sequence), .nrrd/.nhdr, 3D Slicer .seg.nrrd (segments found by\n"
+      "name) and .seq.nrrd, .mha/.mhd. Labels: --convention mvtool (1 annulus, 2 anterior, 3 posterior; the\n"
+      "default) or mvseg (1 posterior, 2 anterior, no annulus), or --labels ANTERIOR,POSTERIOR[,ANNULUS] (0: none).\n"
+      "Without an annulus label the annulus is the leaflets' attachment rim. Landmarks: --markups FILE[@TIME]\n"
+      "(.mrk.json or .fcsv; matched by label, see docs/import.md; without @TIME: every frame). Papillary tips\n"
+      "neither labelled nor given are ASSUMED from published anatomy, and every report says so.\n"
+      "End-diastole and the first closed frame: the largest and smallest leaflet opening, or\n"
+      "--end-diastole I --first-closed I (frame indices in time order).");
+  auto frames = std::make_shared<std::vector<std::string>>();
+  auto sequences = std::make_shared<std::vector<std::string>>();
+  auto markups = std::make_shared<std::vector<std::string>>();
+  auto order = std::make_shared<std::vector<std::string>>();
+  auto out = std::make_shared<std::string>();
+  auto json_out = std::make_shared<std::string>();
+  auto convention = std::make_shared<std::string>();
+  auto labels = std::make_shared<std::vector<int>>();
+  auto papillary = std::make_shared<int>(0);
+  auto atrium = std::make_shared<std::vector<double>>();
+  auto no_ring = std::make_shared<bool>(false);
+  auto force = std::make_shared<bool>(false);
+  auto opt = std::make_shared<detection::PatientImportOptions>();
+  cmd->add_option("--frame", *frames, "label map of one frame, FILE or FILE@TIME (s); repeatable");
+  cmd->add_option("--sequence", *sequences, "3D+t label maps (4D NIfTI, .seq.nrrd, 4D .mha); times from the file");
+  cmd->add_option("--markups", *markups, "3D Slicer markups FILE or FILE@TIME (.mrk.json, .fcsv); repeatable");
+  cmd->add_option("--markup-order", *order, "landmark names of unlabelled markup points, in order")->delimiter(',');
+  auto* conv = cmd->add_option("--convention", *convention, "label convention: mvtool (default) or mvseg");
+  cmd->add_option("--labels", *labels, "label values ANTERIOR,POSTERIOR[,ANNULUS] (0: no annulus label)")
+      ->delimiter(',')
+      ->expected(2, 3)
+      ->excludes(conv);
+  cmd->add_option("--papillary-label", *papillary, "label value of the papillary muscles (their tips)");
+  cmd->add_flag("--no-annulus-label", *no_ring, "fit the annulus to the leaflet rim even when it is labelled");
+  cmd->add_option("--atrium", *atrium, "direction into the left atrium, x,y,z (default: inferred)")->delimiter(',')->expected(3);
+  cmd->add_option("--end-diastole", opt->end_diastole, "end-diastolic frame index (time order; default: from the opening)");
+  cmd->add_option("--first-closed", opt->first_closed, "first closed frame index (default: from the opening)");
+  cmd->add_option("--ures", opt->fit.ures, "grid points around the annulus (even, >= 8)")->default_val(30);
+  cmd->add_option("--vres", opt->fit.vres, "grid points from annulus to free edge (>= 3)")->default_val(30);
+  cmd->add_option("--id", opt->id, "patient identifier (default: the first file's name)");
+  cmd->add_option("--json", *json_out, "also write the fit report as JSON");
+  cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
+  cmd->add_flag("--force", *force, "replace an existing file");
+  cmd->callback([=, &ctx] {
+    ctx.run = [=, &ctx] {
+      if (frames->empty() && sequences->empty()) throw Error("import: give label maps with --frame FILE[@TIME] or --sequence FILE");
+      refuse_overwrite_path(*out, *force);
+      if (!json_out->empty()) refuse_overwrite_path(*json_out, *force);
+      detection::PatientImportOptions o = *opt;
+      const bool explicit_labels = !labels->empty();
+      if (explicit_labels) {
+        o.fit.labels = {(*labels)[0], (*labels)[1], labels->size() > 2 ? (*labels)[2] : 0, 0, "explicit"};
+      } else {
+        o.fit.labels = detection::segmentation_labels(convention->empty() ? "mvtool" : *convention);
+      }
+      o.fit.labels.papillary = *papillary;
+      o.fit.use_annulus_label = !*no_ring;
+      if (!atrium->empty()) o.fit.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
+      std::vector<detection::LabelFrame> lf;
+      for (const std::string& a : *frames) {
+        const auto [file, time] = split_time(a);
+        for (auto& f : read_label_file(file, time, false, explicit_labels)) lf.push_back(std::move(f));
+        if (!time && frames->size() > 1)
+          throw Error(file + ": several frames need their times: give each as FILE@TIME (s)");
+      }
+      for (const std::string& s : *sequences)
+        for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels)) lf.push_back(std::move(f));
+      std::vector<Landmark> ord;
+      for (const std::string& n : *order) {
+        const auto l = detection::landmark_from_label(n);
+        if (!l) throw Error("--markup-order: '" + n + "' names no landmark (see docs/import.md)");
+        ord.push_back(*l);
+      }
+      std::vector<detection::LandmarkInput> lm;
+      for (const std::string& a : *markups) {
+        const auto [file, time] = split_time(a);
+        const MarkupList m = read_markups(file);
+        for (auto& x : detection::landmarks_from_markups(m, file, time, ord)) lm.push_back(x);
+      }
+      std::cout << "fitting " << lf.size() << " frame(s) (" << o.fit.labels.describe() << ")\n";
+      detection::PatientImport r = detection::import_patient(std::move(lf), lm, o);
+      r.patient.provenance.command = ctx.command_line;
+      const ValveSequence& seq = r.patient.sequence;
+      nlohmann::json report = {{"mvtwin_version", kVersion}, {"command", ctx.command_line}, {"created_utc", utc_now_iso8601()},
+                               {"patient_id", r.patient.id}, {"synthetic", false}, {"labels", o.fit.labels.describe()},
+                               {"end_diastole", seq.end_diastole}, {"first_closed", seq.first_closed},
+                               {"assumed", r.assumed}, {"notes", r.notes}, {"frames", nlohmann::json::array()}};
+      for (size_t f = 0; f < r.fits.size(); ++f) {
+        const detection::FrameFit& fit = r.fits[f];
+        const std::string phase = static_cast<int>(f) == seq.end_diastole ? "  [end-diastole]"
+                                  : static_cast<int>(f) == seq.first_closed ? "  [first closed]" : "";
+        std::cout << "frame " << f << " t=" << fmt(seq.frames[f].time_s, 3) << " s" << phase << ": "
+                  << fit.anterior_voxels << " anterior / " << fit.posterior_voxels << " posterior voxels, orifice "
+                  << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
+        std::cout << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 " << fmt(fit.surface_to_mask.p95)
+                  << "), atrial mask -> surface " << fmt(fit.mask_to_surface.mean) << " mm (p95 "
+                  << fmt(fit.mask_to_surface.p95) << ")\n";
+        std::cout << "  annulus: " << fit.annulus_source;
+        if (fit.annulus_to_label) std::cout << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
+        if (fit.rim_vs_label)
+          std::cout << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it (" << fmt(fit.rim_to_label_voxels->mean)
+                    << " mm from the label's voxels)";
+        std::cout << "\n";
+        std::string obs, ass;
+        for (int l = 0; l < kNumLandmarks; ++l) {
+          if (!seq.frames[f].landmark_observed[l]) continue;
+          (seq.frames[f].landmark_assumed[l] ? ass : obs) += std::string(obs.empty() ? "" : "") + " " + std::string(kLandmarkNames[l]);
+        }
+        std::cout << "  observed:" << (obs.empty() ? " -" : obs) << "\n";
+        if (!ass.empty()) std::cout << "  ASSUMED: " << ass << "\n";
+        for (const auto& w : fit.warnings) std::cout << "  warning: " << w << "\n";
+        nlohmann::json fj = {{"source", r.patient.provenance.source.empty() ? "" : ""},
+                             {"time_s", seq.frames[f].time_s},
+                             {"orifice_area_mm2", fit.orifice_area_mm2},
+                             {"annulus_source", fit.annulus_source},
+                             {"surface_to_mask", stats_json(fit.surface_to_mask)},
+                             {"mask_to_surface", stats_json(fit.mask_to_surface)},
+                             {"anterior_voxels", fit.anterior_voxels},
+                             {"posterior_voxels", fit.posterior_voxels},
+                             {"annulus_voxels", fit.annulus_voxels},
+                             {"notes", fit.notes},
+                             {"warnings", fit.warnings}};
+        if (fit.annulus_to_label) fj["annulus_to_label"] = stats_json(*fit.annulus_to_label);
+        if (fit.rim_vs_label) fj["rim_vs_label"] = stats_json(*fit.rim_vs_label);
+        if (fit.rim_to_label_voxels) fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
+        report["frames"].push_back(fj);
+      }
+      for (const auto& n : r.notes) std::cout << "note: " << n << "\n";
+      for (const auto& a : r.assumed) std::cout << "ASSUMED: " << a << "\n";
+      write_patient(*out, r.patient);
+      if (!json_out->empty()) {
+        const std::string text = report.dump(2);
+        write_atomically(*json_out, [&](const fs::path& tmp) {
+          std::ofstream f(tmp);
+          f << text << "\n";
+          f.close();
+          if (!f) throw Error(*json_out + ": write failed");
+        });
+      }
+      std::cout << "wrote " << *out << " (real patient " << r.patient.id << ", " << seq.num_frames() << " frame(s))\n";
+      return 0;
+    };
+  });
+}
+
+}  // namespace mvtwin::tools
