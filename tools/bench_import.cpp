@@ -91,7 +91,7 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
             std::vector<detection::LabelFrame> lf;
             for (int f : {s.end_diastole, s.first_closed}) {
               lo.seed = p.provenance.seed * 7 + static_cast<std::uint64_t>(f);
-              lf.push_back({detection::valve_label_map(s.frames[f], lo), s.frames[f].time_s, p.id + "/" + std::to_string(f), std::nullopt});
+              lf.push_back({detection::valve_label_map(s.frames[f], lo), s.frames[f].time_s, p.id + "/" + std::to_string(f), std::nullopt, std::nullopt});
             }
             detection::PatientImportOptions io;
             io.fit.labels = lo.labels;

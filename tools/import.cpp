@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -15,6 +16,7 @@
 #include "mvtwin/core/markups.h"
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/surface_mesh_io.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/detection/patient_import.h"
 
@@ -84,7 +86,7 @@ std::vector<detection::LabelFrame> read_label_file(const std::string& file, std:
         if (std::lround(src[v]) == lv.second) merged.data[v] = code.at(r);
     }
     detection::SegmentationLabels labels{2, 3, role.count("annulus") ? 1 : 0, role.count("papillary") ? 4 : 0, "segment names"};
-    out.push_back({std::move(merged), time.value_or(0.0), file, labels});
+    out.push_back({std::move(merged), time.value_or(0.0), file, labels, std::nullopt});
     return out;
   }
   if (vols.size() > 1 && !sequence) {
@@ -92,7 +94,7 @@ std::vector<detection::LabelFrame> read_label_file(const std::string& file, std:
   }
   for (size_t f = 0; f < vols.size(); ++f) {
     const double t = vols.size() > 1 ? vols[f].time_s : time.value_or(vols[f].time_s);
-    out.push_back({std::move(vols[f]), t, vols.size() > 1 ? file + "[" + std::to_string(f) + "]" : file, std::nullopt});
+    out.push_back({std::move(vols[f]), t, vols.size() > 1 ? file + "[" + std::to_string(f) + "]" : file, std::nullopt, std::nullopt});
   }
   return out;
 }
@@ -117,6 +119,7 @@ void register_import(CLI::App& app, Context& ctx) {
       "  mvtwin import --frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json --out p.h5\n"
       "  mvtwin import --sequence valve.seq.nrrd --convention mvseg --papillary-label 4 --out p.h5\n"
       "  mvtwin import --frame 008_gt.nii.gz --out 008.h5          # one closed frame: measured, not simulated\n"
+      "  mvtwin import --mesh ed_al.stl,ed_pl.stl@0 --mesh es.vtp@0.24 --markups tips.mrk.json --out p.h5\n"
       "Label maps: .nii/.nii.gz (3D, or 4D with --sequence), .nrrd/.nhdr, 3D Slicer .seg.nrrd (segments found by\n"
       "name) and .seq.nrrd, .mha/.mhd. Labels: --convention mvtool (1 annulus, 2 anterior, 3 posterior; the\n"
       "default) or mvseg (1 posterior, 2 anterior, no annulus), or --labels ANTERIOR,POSTERIOR[,ANNULUS] (0: none).\n"
@@ -128,6 +131,8 @@ void register_import(CLI::App& app, Context& ctx) {
   auto frames = std::make_shared<std::vector<std::string>>();
   auto sequences = std::make_shared<std::vector<std::string>>();
   auto markups = std::make_shared<std::vector<std::string>>();
+  auto meshes = std::make_shared<std::vector<std::string>>();
+  auto mesh_space = std::make_shared<std::string>();
   auto order = std::make_shared<std::vector<std::string>>();
   auto out = std::make_shared<std::string>();
   auto json_out = std::make_shared<std::string>();
@@ -140,6 +145,11 @@ void register_import(CLI::App& app, Context& ctx) {
   auto opt = std::make_shared<detection::PatientImportOptions>();
   cmd->add_option("--frame", *frames, "label map of one frame, FILE or FILE@TIME (s); repeatable");
   cmd->add_option("--sequence", *sequences, "3D+t label maps (4D NIfTI, .seq.nrrd, 4D .mha); times from the file");
+  cmd->add_option("--mesh", *meshes,
+                  "leaflet surfaces of one frame instead of a label map: ANTERIOR,POSTERIOR[@TIME] or BOTH[@TIME] "
+                  "(.stl, .ply, .vtk, .vtp); repeatable");
+  cmd->add_option("--mesh-space", *mesh_space, "ras or lps (default: the file's SPACE= mark, else RAS)")
+      ->check(CLI::IsMember({"ras", "lps"}));
   cmd->add_option("--markups", *markups, "3D Slicer markups FILE or FILE@TIME (.mrk.json, .fcsv); repeatable");
   cmd->add_option("--markup-order", *order, "landmark names of unlabelled markup points, in order")->delimiter(',');
   auto* conv = cmd->add_option("--convention", *convention, "label convention: mvtool (default) or mvseg");
@@ -160,7 +170,8 @@ void register_import(CLI::App& app, Context& ctx) {
   cmd->add_flag("--force", *force, "replace an existing file");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      if (frames->empty() && sequences->empty()) throw Error("import: give label maps with --frame FILE[@TIME] or --sequence FILE");
+      if (frames->empty() && sequences->empty() && meshes->empty())
+        throw Error("import: give label maps with --frame FILE[@TIME] or --sequence FILE, or surfaces with --mesh");
       refuse_overwrite_path(*out, *force);
       if (!json_out->empty()) refuse_overwrite_path(*json_out, *force);
       detection::PatientImportOptions o = *opt;
@@ -177,8 +188,36 @@ void register_import(CLI::App& app, Context& ctx) {
       for (const std::string& a : *frames) {
         const auto [file, time] = split_time(a);
         for (auto& f : read_label_file(file, time, false, explicit_labels)) lf.push_back(std::move(f));
-        if (!time && frames->size() > 1)
+        if (!time && frames->size() + meshes->size() > 1)
           throw Error(file + ": several frames need their times: give each as FILE@TIME (s)");
+      }
+      for (const std::string& a : *meshes) {
+        const auto [files, time] = split_time(a);
+        if (!time && frames->size() + meshes->size() > 1)
+          throw Error(files + ": several frames need their times: give each as FILES@TIME (s)");
+        std::vector<std::string> names;
+        std::stringstream ss(files);
+        for (std::string n; std::getline(ss, n, ',');) names.push_back(n);
+        if (names.empty() || names.size() > 2) throw Error("--mesh " + a + ": one file (both leaflets) or two (anterior,posterior)");
+        std::vector<TriangleMesh> ms;
+        for (const std::string& n : names) {
+          SurfaceFile sf = read_surface_mesh(n);
+          const std::string space = mesh_space->empty() ? (sf.space.empty() ? "RAS" : sf.space) : (*mesh_space == "lps" ? "LPS" : "RAS");
+          if (sf.space.empty() && mesh_space->empty())
+            std::cout << n << ": no SPACE= mark in the file: taken as RAS (--mesh-space lps if it is LPS, as 3D Slicer writes)\n";
+          if (space == "LPS") sf.mesh.V.leftCols(2) *= -1.0;
+          ms.push_back(std::move(sf.mesh));
+        }
+        detection::LabelFrame f;
+        f.time_s = time.value_or(0.0);
+        f.source = files;
+        if (ms.size() == 2) {
+          f.meshes = std::make_pair(ms[0], ms[1]);
+        } else {
+          f.meshes = detection::split_leaflet_meshes(ms[0], names[0]);
+          std::cout << names[0] << ": two pieces; the rounder one is taken as the anterior leaflet, the crescent as the posterior\n";
+        }
+        lf.push_back(std::move(f));
       }
       for (const std::string& s : *sequences)
         for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels)) lf.push_back(std::move(f));

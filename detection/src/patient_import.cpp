@@ -127,7 +127,8 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
   for (const LabelFrame& lf : frames) {
     SegmentationFitOptions fo = opt.fit;
     if (lf.labels_override) fo.labels = *lf.labels_override;
-    FrameFit fit = fit_segmentation_frame(lf.labels, lf.source, fo);
+    FrameFit fit = lf.meshes ? fit_surface_frame(lf.meshes->first, lf.meshes->second, lf.source, fo)
+                             : fit_segmentation_frame(lf.labels, lf.source, fo);
     fit.frame.time_s = lf.time_s;
     out.fits.push_back(std::move(fit));
   }

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -12,6 +10,7 @@
 #include <Eigen/Dense>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/triangle_bvh.h"
 
 namespace mvtwin::detection {
 namespace {
@@ -812,6 +811,167 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     out.orifice_area_mm2 = open * pix * pix;
   }
   return out;
+}
+
+}  // namespace mvtwin::detection
+
+namespace mvtwin::detection {
+
+std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m, const std::string& source) {
+  m.check(source.c_str());
+  // Union-find over vertices joined by triangles.
+  std::vector<int> parent(static_cast<size_t>(m.V.rows()));
+  for (size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+  auto find = [&](int x) {
+    while (parent[static_cast<size_t>(x)] != x) x = parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
+    return x;
+  };
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f)
+    for (int k = 1; k < 3; ++k) parent[static_cast<size_t>(find(m.F(f, k)))] = find(m.F(f, 0));
+  std::map<int, double> area;
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+    area[find(m.F(f, 0))] += 0.5 * (b - a).cross(c - a).norm();
+  }
+  std::vector<std::pair<double, int>> by_area;
+  for (const auto& [root, a] : area) by_area.emplace_back(a, root);
+  std::sort(by_area.rbegin(), by_area.rend());
+  if (by_area.size() < 2 || by_area[1].first < 0.05 * by_area[0].first) {
+    throw Error(source + ": the surface is one connected piece; give the anterior and posterior leaflets as two "
+                         "files (--mesh anterior.stl,posterior.stl) or as two separate pieces of one file");
+  }
+  auto piece = [&](int root) {
+    TriangleMesh out;
+    std::vector<int> id(static_cast<size_t>(m.V.rows()), -1);
+    std::vector<Eigen::Vector3d> V;
+    std::vector<Eigen::Vector3i> F;
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+      if (find(m.F(f, 0)) != root) continue;
+      Eigen::Vector3i t;
+      for (int k = 0; k < 3; ++k) {
+        int& x = id[static_cast<size_t>(m.F(f, k))];
+        if (x < 0) {
+          x = static_cast<int>(V.size());
+          V.push_back(m.V.row(m.F(f, k)).transpose());
+        }
+        t[k] = x;
+      }
+      F.push_back(t);
+    }
+    out.V.resize(static_cast<Eigen::Index>(V.size()), 3);
+    for (size_t i = 0; i < V.size(); ++i) out.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+    out.F.resize(static_cast<Eigen::Index>(F.size()), 3);
+    for (size_t i = 0; i < F.size(); ++i) out.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    return out;
+  };
+  // Which is anterior: the anterior leaflet is a tall shield on a third of the annulus, the
+  // posterior a long low crescent on the rest (Mansi et al. 2012, Sec. 2.1), so the anterior
+  // piece is the rounder one in the isoperimetric sense: the larger area / boundary length^2.
+  auto roundness = [](const TriangleMesh& t) {
+    std::map<std::pair<int, int>, int> uses;
+    double surface = 0;
+    for (Eigen::Index f = 0; f < t.F.rows(); ++f) {
+      const Eigen::Vector3d a = t.V.row(t.F(f, 0)), b = t.V.row(t.F(f, 1)), c = t.V.row(t.F(f, 2));
+      surface += 0.5 * (b - a).cross(c - a).norm();
+      for (int k = 0; k < 3; ++k) {
+        const int i = t.F(f, k), j = t.F(f, (k + 1) % 3);
+        ++uses[{std::min(i, j), std::max(i, j)}];
+      }
+    }
+    double boundary = 0;
+    for (const auto& [e, n] : uses)
+      if (n == 1) boundary += (t.V.row(e.first) - t.V.row(e.second)).norm();
+    return surface / std::max(boundary * boundary, 1e-300);
+  };
+  TriangleMesh a = piece(by_area[0].second), b = piece(by_area[1].second);
+  if (roundness(b) > roundness(a)) std::swap(a, b);
+  return {a, b};
+}
+
+FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior, const std::string& source,
+                           const SegmentationFitOptions& options, double voxel_mm) {
+  anterior.check((source + " (anterior leaflet)").c_str());
+  posterior.check((source + " (posterior leaflet)").c_str());
+  if (anterior.F.rows() == 0 || posterior.F.rows() == 0) throw Error(source + ": a leaflet mesh has no triangles");
+  if (!(voxel_mm >= 0.1 && voxel_mm <= 2.0)) throw Error(source + ": the rasterizing voxel must be in [0.1, 2] mm");
+  constexpr double kHalfThickness = 0.65;  // mm: half the FE model's leaflet thickness
+  const double reach = kHalfThickness;
+  Eigen::Vector3d lo = anterior.V.colwise().minCoeff().transpose().cwiseMin(posterior.V.colwise().minCoeff().transpose());
+  Eigen::Vector3d hi = anterior.V.colwise().maxCoeff().transpose().cwiseMax(posterior.V.colwise().maxCoeff().transpose());
+  lo -= Eigen::Vector3d::Constant(reach + 3 * voxel_mm);
+  hi += Eigen::Vector3d::Constant(reach + 3 * voxel_mm);
+  ImageVolume im;
+  im.spacing = Eigen::Vector3d::Constant(voxel_mm);
+  im.origin = lo;
+  for (int k = 0; k < 3; ++k) {
+    im.size[k] = static_cast<int>(std::ceil((hi[k] - lo[k]) / voxel_mm)) + 1;
+    if (im.size[k] > 1500) throw Error(source + ": the leaflet meshes span more than 600 mm: wrong units?");
+  }
+  im.data.assign(im.num_voxels(), 0.0f);
+  std::vector<float> best(im.num_voxels(), static_cast<float>(reach));
+  const TriangleMesh* meshes[2] = {&anterior, &posterior};
+  for (int leaf = 0; leaf < 2; ++leaf) {
+    const TriangleMesh& m = *meshes[leaf];
+    const TriangleBvh bvh(m);
+    std::vector<std::uint8_t> near(im.num_voxels(), 0);
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+      Eigen::Vector3d a = m.V.row(m.F(f, 0)).transpose(), b = a;
+      for (int k = 1; k < 3; ++k) {
+        a = a.cwiseMin(m.V.row(m.F(f, k)).transpose());
+        b = b.cwiseMax(m.V.row(m.F(f, k)).transpose());
+      }
+      const Eigen::Vector3d i0 = (a - lo).array() / voxel_mm - reach / voxel_mm, i1 = (b - lo).array() / voxel_mm + reach / voxel_mm;
+      for (int z = std::max(0, static_cast<int>(std::floor(i0.z()))); z <= std::min(im.size[2] - 1, static_cast<int>(std::ceil(i1.z()))); ++z)
+        for (int y = std::max(0, static_cast<int>(std::floor(i0.y()))); y <= std::min(im.size[1] - 1, static_cast<int>(std::ceil(i1.y()))); ++y)
+          for (int x = std::max(0, static_cast<int>(std::floor(i0.x()))); x <= std::min(im.size[0] - 1, static_cast<int>(std::ceil(i1.x()))); ++x)
+            near[static_cast<size_t>(x) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(y) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(z))] = 1;
+    }
+    for (int z = 0; z < im.size[2]; ++z)
+      for (int y = 0; y < im.size[1]; ++y)
+        for (int x = 0; x < im.size[0]; ++x) {
+          const size_t v = static_cast<size_t>(x) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(y) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(z));
+          if (!near[v]) continue;
+          const double d = bvh.closest(im.position(x, y, z)).distance;
+          if (d <= static_cast<double>(best[v])) {
+            best[v] = static_cast<float>(d);
+            im.data[v] = leaf == 0 ? 2.0f : 3.0f;
+          }
+        }
+  }
+  SegmentationFitOptions o = options;
+  o.labels = {2, 3, 0, 0, "surface meshes"};
+  FrameFit fit = fit_segmentation_frame(im, source, o);
+  fit.annulus_source = "leaflet mesh rim";
+  // Onto the meshes: every grid point to the closest point of its own leaflet's mesh (either at
+  // the commissures), the annulus row to the meshes' rim.
+  const TriangleBvh ba(anterior), bp(posterior);
+  LeafletGrid& g = *fit.frame.la_surface;
+  const int U = g.ures();
+  for (int v = 0; v < g.vres(); ++v)
+    for (int u = 0; u < U; ++u) {
+      const Eigen::Vector3d p = g.at(u, v);
+      const TriangleBvh::Hit ha = ba.closest(p), hp = bp.closest(p);
+      const bool commissure = u == 0 || u == U / 2;
+      const TriangleBvh::Hit& h = commissure ? (ha.distance < hp.distance ? ha : hp) : (u < U / 2 ? ha : hp);
+      g.points().row(static_cast<Eigen::Index>(v) * U + u) = h.point.transpose();
+    }
+  fit.frame.annulus = g.points().topRows(U);
+  fit.frame.landmarks[index(Landmark::kAnterolateralCommissure)] = g.at(0, 0);
+  fit.frame.landmarks[index(Landmark::kPosteromedialCommissure)] = g.at(U / 2, 0);
+  fit.frame.landmarks[index(Landmark::kPosteriorAnnulusMidpoint)] = g.sample(0.75, 0.0);
+  fit.frame.landmarks[index(Landmark::kAnteriorLeafletTip)] = g.sample(0.25, 1.0);
+  fit.frame.landmarks[index(Landmark::kPosteriorLeafletTip)] = g.sample(0.75, 1.0);
+  // Fit quality against the meshes themselves.
+  TriangleMesh both;
+  both.V.resize(anterior.V.rows() + posterior.V.rows(), 3);
+  both.V << anterior.V, posterior.V;
+  both.F.resize(anterior.F.rows() + posterior.F.rows(), 3);
+  both.F << anterior.F, (posterior.F.array() + static_cast<int>(anterior.V.rows())).matrix();
+  fit.surface_to_mask = point_to_mesh_distance(g.points(), both);
+  fit.mask_to_surface = point_to_mesh_distance(both.V, g.triangulate());
+  fit.notes.push_back("surface meshes rasterized at " + std::to_string(voxel_mm).substr(0, 4) +
+                      " mm, fitted, and the grid moved onto the meshes; fit errors are to the meshes (all of their vertices)");
+  return fit;
 }
 
 }  // namespace mvtwin::detection

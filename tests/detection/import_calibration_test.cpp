@@ -42,7 +42,7 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   std::vector<LandmarkInput> tips;
   for (int f : {s.end_diastole, s.first_closed}) {
     lo.seed = 11 + static_cast<std::uint64_t>(f);
-    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt});
+    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt, std::nullopt});
     for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
       tips.push_back({l, s.frames[f].landmark(l), s.frames[f].time_s, "tips.mrk.json"});
   }

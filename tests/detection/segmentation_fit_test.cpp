@@ -12,6 +12,7 @@
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/nifti.h"
+#include "mvtwin/core/surface_mesh_io.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/detection/label_map.h"
 #include "mvtwin/detection/patient_import.h"
@@ -296,6 +297,54 @@ TEST(SegmentationFit, RealValveMvtool008) {
   EXPECT_LT((gt.frame.annulus.row(0) - pred.frame.annulus.row(0)).norm(), 6.0);
 }
 
+// The same virtual frames given as leaflet surface meshes (as other tools export them): one file
+// per leaflet, or both leaflets in one file.
+TEST(SegmentationFit, LeafletSurfaceMeshes) {
+  const Patient& p = closed_patient(2);
+  const fs::path dir = fs::temp_directory_path() / "mvtwin_mesh_fit_test";
+  fs::create_directories(dir);
+  for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
+    const ValveFrame& truth = p.sequence.frames[f];
+    const LeafletGrid fine = truth.la_surface->resampled(48, 30);
+    const TriangleMesh all = fine.triangulate();
+    const Eigen::VectorXi tags = fine.triangle_tags();
+    TriangleMesh leaf[2];
+    for (int k = 0; k < 2; ++k) {
+      leaf[k].V = all.V;
+      std::vector<Eigen::Vector3i> F;
+      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
+        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0)) F.emplace_back(all.F.row(t).transpose());
+      leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
+      for (size_t i = 0; i < F.size(); ++i) leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    }
+    write_surface_mesh(dir / "anterior.stl", leaf[0]);
+    write_surface_mesh(dir / "posterior.ply", leaf[1]);
+    const FrameFit two = fit_surface_frame(read_surface_mesh(dir / "anterior.stl").mesh,
+                                           read_surface_mesh(dir / "posterior.ply").mesh, "meshes");
+    const double e2 = symmetric_surface_distance(two.frame.la_surface->triangulate(), truth.la_surface->triangulate()).symmetric.mean;
+    const double a2 = annulus_error(two.frame.annulus, truth.annulus);
+    std::cout << "frame " << f << ": two mesh files: surface " << e2 << " mm, annulus " << a2 << " mm\n";
+    EXPECT_LT(e2, 0.5);
+    EXPECT_LT(a2, 1.0);
+    EXPECT_LT(two.surface_to_mask.mean, 1e-6);  // on the meshes
+    // Both leaflets in one file: split into its two pieces (the commissure columns are shared by
+    // the grid's leaflets, so here the pieces come from separate vertex copies).
+    TriangleMesh both;
+    both.V.resize(2 * all.V.rows(), 3);
+    both.V << leaf[0].V, leaf[1].V;
+    both.F.resize(leaf[0].F.rows() + leaf[1].F.rows(), 3);
+    both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(all.V.rows())).matrix();
+    write_surface_mesh(dir / "both.vtp", both, "RAS");
+    const auto [a, b] = split_leaflet_meshes(read_surface_mesh(dir / "both.vtp").mesh, "both.vtp");
+    EXPECT_EQ(a.F.rows(), leaf[0].F.rows()) << "the anterior leaflet is told apart by its shape";
+    const FrameFit one = fit_surface_frame(a, b, "both.vtp");
+    const double e1 = symmetric_surface_distance(one.frame.la_surface->triangulate(), truth.la_surface->triangulate()).symmetric.mean;
+    EXPECT_LT(e1, 0.5);
+  }
+  // One connected surface cannot be split into leaflets.
+  EXPECT_THROW(split_leaflet_meshes(p.sequence.frames[p.sequence.end_diastole].la_surface->triangulate(), "one.stl"), Error);
+}
+
 TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
   const Patient& p = closed_patient(1);
   const ValveSequence& s = p.sequence;
@@ -306,7 +355,7 @@ TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
   std::vector<LabelFrame> frames;
   for (int f : {s.first_closed, s.end_diastole}) {  // out of order on purpose
     lo.seed = static_cast<std::uint64_t>(f);
-    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt});
+    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt, std::nullopt});
   }
   PatientImportOptions o;
   o.fit.labels = lo.labels;

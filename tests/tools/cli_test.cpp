@@ -12,6 +12,7 @@
 
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
+#include "mvtwin/core/surface_mesh_io.h"
 
 #include "mvtwin/core/patient_file.h"
 
@@ -20,6 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using mvtwin::ImageVolume;
 using mvtwin::Landmark;
+using mvtwin::LeafletGrid;
 using mvtwin::Patient;
 using mvtwin::SymmetricDistance;
 using mvtwin::symmetric_surface_distance;
@@ -310,6 +312,43 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
   ASSERT_EQ(r.code, 0) << r.err;
   const Patient seg = mvtwin::read_patient(path("seg.h5"));
   EXPECT_LT((seg.sequence.frames[0].la_surface->points() - imp.sequence.frames[0].la_surface->points()).cwiseAbs().maxCoeff(), 1e-6);
+  // The same frames as leaflet surface meshes: two files at end-diastole (STL and PLY, in LPS as
+  // 3D Slicer writes them, with its SPACE mark), one file holding both leaflets when closed.
+  for (int k = 0; k < 2; ++k) {
+    const LeafletGrid fine = v.sequence.frames[k ? fc : ed].la_surface->resampled(48, 30);
+    const mvtwin::TriangleMesh all = fine.triangulate();
+    const Eigen::VectorXi tags = fine.triangle_tags();
+    mvtwin::TriangleMesh leaf[2];
+    for (int l = 0; l < 2; ++l) {
+      leaf[l].V = all.V;
+      if (k == 0) leaf[l].V.leftCols(2) *= -1.0;  // LPS
+      std::vector<Eigen::Vector3i> F;
+      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
+        if ((tags[t] == static_cast<int>(mvtwin::LeafletTag::kAnterior)) == (l == 0)) F.emplace_back(all.F.row(t).transpose());
+      leaf[l].F.resize(static_cast<Eigen::Index>(F.size()), 3);
+      for (size_t i = 0; i < F.size(); ++i) leaf[l].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    }
+    if (k == 0) {
+      mvtwin::write_surface_mesh(path("ed_al.stl"), leaf[0], "LPS");
+      mvtwin::write_surface_mesh(path("ed_pl.ply"), leaf[1], "LPS");
+    } else {
+      mvtwin::TriangleMesh both;
+      both.V.resize(2 * all.V.rows(), 3);
+      both.V << leaf[0].V, leaf[1].V;
+      both.F.resize(leaf[0].F.rows() + leaf[1].F.rows(), 3);
+      both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(all.V.rows())).matrix();
+      mvtwin::write_surface_mesh(path("fc.vtp"), both, "RAS");
+    }
+  }
+  r = run("import --mesh " + path("ed_al.stl") + "," + path("ed_pl.ply") + "@" + t_ed + " --mesh " + path("fc.vtp") + "@" + t_fc +
+          " --markups " + m_ed + "@" + t_ed + " --out " + path("mesh.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Patient mesh = mvtwin::read_patient(path("mesh.h5"));
+  for (int k = 0; k < 2; ++k) {
+    const SymmetricDistance d = symmetric_surface_distance(mesh.sequence.frames[k].la_surface->triangulate(),
+                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    EXPECT_LT(d.symmetric.mean, 0.5) << "mesh frame " << k;
+  }
   r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;

@@ -13,13 +13,15 @@
 
 namespace mvtwin::detection {
 
-/// One label map of the cycle and its time.
+/// One frame of the cycle, a label map or leaflet surface meshes, and its time.
 struct LabelFrame {
   ImageVolume labels;
   double time_s = 0.0;
   std::string source;  ///< file name, for messages and the record
   /// Labels of this frame when they differ from the options' (a .seg.nrrd's segment names).
   std::optional<SegmentationLabels> labels_override;
+  /// Leaflet surface meshes (anterior, posterior) in place of the label map (fit_surface_frame).
+  std::optional<std::pair<TriangleMesh, TriangleMesh>> meshes;
 };
 
 /// A landmark placed in another tool: in one frame (time set) or in every frame.
