@@ -19,6 +19,7 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/patient_vtk.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
+#include "mvtwin/core/image_io.h"
 #include "mvtwin/core/markups.h"
 #include "mvtwin/detection/label_map.h"
 #include "mvtwin/core/units.h"
@@ -111,6 +112,10 @@ void print_info(const Patient& p, std::ostream& os) {
   os << "made by   mvtwin " << p.provenance.version << ", " << p.provenance.created_utc
      << (p.provenance.seed ? ", seed " + std::to_string(p.provenance.seed) : "") << "\n";
   os << "command   " << p.provenance.command << "\n";
+  if (!p.import_report.empty()) {
+    std::istringstream lines(p.import_report);
+    for (std::string l; std::getline(lines, l);) os << "import    " << l << "\n";
+  }
   int observed = 0;
   for (const auto& f : s.frames) observed += f.la_surface.has_value();
   os << "sequence  " << s.num_frames() << " frames, t = " << fmt(s.frames.front().time_s, 3)
@@ -383,8 +388,10 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto lo = std::make_shared<detection::LabelMapOptions>();
     auto frames = std::make_shared<std::vector<int>>();
     auto force = std::make_shared<bool>(false);
+    auto as_sequence = std::make_shared<bool>(false);
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--vtk", *dir, "output directory for VTK");
+    cmd->add_flag("--sequence", *as_sequence, "with --labelmap: one 3D+t file, labels.seq.nrrd (3D Slicer's sequence)");
     cmd->add_option("--labelmap", *labeldir, "output directory for label maps and markups");
     cmd->add_option("--convention", *convention, "with --labelmap: mvtool or mvseg")->default_val("mvtool");
     cmd->add_option("--voxel", lo->voxel_mm, "with --labelmap: voxel size, mm")->default_val(lo->voxel_mm);
@@ -415,26 +422,46 @@ void register_commands(CLI::App& app, Context& ctx) {
           std::string cmdline = "mvtwin import";
           for (int f : which) {
             if (f < 0 || f >= p.sequence.num_frames()) throw Error("--frames: no frame " + std::to_string(f));
+            if (!p.sequence.frames[f].la_surface) throw Error(*file + ": frame " + std::to_string(f) + " has no leaflet surface");
+          }
+          std::vector<ImageVolume> series;
+          if (*as_sequence) {
+            std::vector<ImageVolume> boxes;
+            for (int f : which) boxes.push_back(detection::label_map_geometry(p.sequence.frames[f], o));
+            o.geometry = detection::union_geometry(boxes);
+          }
+          for (int f : which) {
             const ValveFrame& fr = p.sequence.frames[f];
-            if (!fr.la_surface) throw Error(*file + ": frame " + std::to_string(f) + " has no leaflet surface");
             char name[64];
-            std::snprintf(name, sizeof name, "frame_%02d.nii.gz", f);
-            const fs::path img = fs::path(*labeldir) / name;
-            refuse_overwrite(img, *force);
             o.seed = lo->seed + static_cast<std::uint64_t>(f);
-            write_nifti(img, detection::valve_label_map(fr, o));
+            char t[32];
+            std::snprintf(t, sizeof t, "%.4f", fr.time_s);
+            if (*as_sequence) {
+              series.push_back(detection::valve_label_map(fr, o));
+              series.back().time_s = fr.time_s;
+            } else {
+              std::snprintf(name, sizeof name, "frame_%02d.nii.gz", f);
+              const fs::path img = fs::path(*labeldir) / name;
+              refuse_overwrite(img, *force);
+              write_nifti(img, detection::valve_label_map(fr, o));
+              cmdline += " --frame " + img.string() + "@" + t;
+            }
             std::snprintf(name, sizeof name, "tips_%02d.mrk.json", f);
             const fs::path mk = fs::path(*labeldir) / name;
+            refuse_overwrite(mk, *force);
             std::vector<MarkupPoint> pts;
             for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
               if (fr.observed(l)) pts.push_back({std::string(name_of_landmark(l)), fr.landmark(l)});
-            char t[32];
-            std::snprintf(t, sizeof t, "%.4f", fr.time_s);
-            cmdline += " --frame " + img.string() + "@" + t;
             if (!pts.empty()) {
               write_markups_json(mk, pts);
               cmdline += " --markups " + mk.string() + "@" + t;
             }
+          }
+          if (*as_sequence) {
+            const fs::path seq = fs::path(*labeldir) / "labels.seq.nrrd";
+            refuse_overwrite(seq, *force);
+            write_image_series(seq, series);
+            cmdline += " --sequence " + seq.string();
           }
           std::cout << "wrote " << which.size() << " label map(s) (" << o.labels.describe() << ", " << o.voxel_mm
                     << " mm voxels" << (p.synthetic ? ", SYNTHETIC: from a virtual patient" : "") << ") to " << *labeldir

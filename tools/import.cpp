@@ -241,31 +241,32 @@ void register_import(CLI::App& app, Context& ctx) {
                                {"patient_id", r.patient.id}, {"synthetic", false}, {"labels", o.fit.labels.describe()},
                                {"end_diastole", seq.end_diastole}, {"first_closed", seq.first_closed},
                                {"assumed", r.assumed}, {"notes", r.notes}, {"frames", nlohmann::json::array()}};
+      std::ostringstream rep;
       for (size_t f = 0; f < r.fits.size(); ++f) {
         const detection::FrameFit& fit = r.fits[f];
         const std::string phase = static_cast<int>(f) == seq.end_diastole ? "  [end-diastole]"
                                   : static_cast<int>(f) == seq.first_closed ? "  [first closed]" : "";
-        std::cout << "frame " << f << " t=" << fmt(seq.frames[f].time_s, 3) << " s" << phase << ": "
+        rep << "frame " << f << " (" << fit.source << ") t=" << fmt(seq.frames[f].time_s, 3) << " s" << phase << ": "
                   << fit.anterior_voxels << " anterior / " << fit.posterior_voxels << " posterior voxels, orifice "
                   << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
-        std::cout << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 " << fmt(fit.surface_to_mask.p95)
+        rep << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 " << fmt(fit.surface_to_mask.p95)
                   << "), atrial mask -> surface " << fmt(fit.mask_to_surface.mean) << " mm (p95 "
                   << fmt(fit.mask_to_surface.p95) << ")\n";
-        std::cout << "  annulus: " << fit.annulus_source;
-        if (fit.annulus_to_label) std::cout << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
+        rep << "  annulus: " << fit.annulus_source;
+        if (fit.annulus_to_label) rep << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
         if (fit.rim_vs_label)
-          std::cout << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it (" << fmt(fit.rim_to_label_voxels->mean)
+          rep << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it (" << fmt(fit.rim_to_label_voxels->mean)
                     << " mm from the label's voxels)";
-        std::cout << "\n";
+        rep << "\n";
         std::string obs, ass;
         for (int l = 0; l < kNumLandmarks; ++l) {
           if (!seq.frames[f].landmark_observed[l]) continue;
-          (seq.frames[f].landmark_assumed[l] ? ass : obs) += std::string(obs.empty() ? "" : "") + " " + std::string(kLandmarkNames[l]);
+          (seq.frames[f].landmark_assumed[l] ? ass : obs) += " " + std::string(kLandmarkNames[l]);
         }
-        std::cout << "  observed:" << (obs.empty() ? " -" : obs) << "\n";
-        if (!ass.empty()) std::cout << "  ASSUMED: " << ass << "\n";
-        for (const auto& w : fit.warnings) std::cout << "  warning: " << w << "\n";
-        nlohmann::json fj = {{"source", r.patient.provenance.source.empty() ? "" : ""},
+        rep << "  observed:" << (obs.empty() ? " -" : obs) << "\n";
+        if (!ass.empty()) rep << "  ASSUMED: " << ass << "\n";
+        for (const auto& w : fit.warnings) rep << "  warning: " << w << "\n";
+        nlohmann::json fj = {{"source", fit.source},
                              {"time_s", seq.frames[f].time_s},
                              {"orifice_area_mm2", fit.orifice_area_mm2},
                              {"annulus_source", fit.annulus_source},
@@ -281,8 +282,10 @@ void register_import(CLI::App& app, Context& ctx) {
         if (fit.rim_to_label_voxels) fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
         report["frames"].push_back(fj);
       }
-      for (const auto& n : r.notes) std::cout << "note: " << n << "\n";
-      for (const auto& a : r.assumed) std::cout << "ASSUMED: " << a << "\n";
+      for (const auto& n : r.notes) rep << "note: " << n << "\n";
+      for (const auto& a : r.assumed) rep << "ASSUMED: " << a << "\n";
+      std::cout << rep.str();
+      r.patient.import_report = rep.str();
       write_patient(*out, r.patient);
       if (!json_out->empty()) {
         const std::string text = report.dump(2);

@@ -325,6 +325,7 @@ void write_patient(const std::filesystem::path& path, const Patient& patient) {
     root.attr("created_utc", patient.provenance.created_utc);
     root.attr("seed", static_cast<long>(patient.provenance.seed));
     root.attr("source", patient.provenance.source);
+    if (!patient.import_report.empty()) root.attr("import_report", patient.import_report);
     root.attr("units_length", std::string(units::kLength));
     root.attr("units_time", std::string(units::kTime));
     root.attr("units_stress", std::string(units::kStress));
@@ -359,6 +360,7 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
   p.provenance.created_utc = root.attr_string("created_utc");
   p.provenance.seed = static_cast<std::uint64_t>(root.attr_long("seed"));
   p.provenance.source = root.attr_string("source");
+  p.import_report = root.has_attr("import_report") ? root.attr_string("import_report") : "";
   p.sequence = read_sequence(root);
   if (with_images) p.images = read_images(root);
   if (root.exists("detected")) {

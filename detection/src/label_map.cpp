@@ -55,6 +55,62 @@ bool LabelMapOptions::is_valid(std::string* error) const {
   return true;
 }
 
+ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& o) {
+  std::string err;
+  if (!o.is_valid(&err)) throw Error("label map: " + err);
+  if (!frame.la_surface) throw Error("label map: the frame has no leaflet surface");
+  const LeafletGrid& g = *frame.la_surface;
+  const TriangleMesh top = g.triangulate();
+  const Points nrm = vertex_normals(top);
+  const double thick = std::max(o.al_thickness_mm, o.pl_thickness_mm);
+  ImageVolume im;
+  im.direction = o.direction ? *o.direction : Eigen::Matrix3d::Identity();
+  im.spacing = Eigen::Vector3d::Constant(o.voxel_mm);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  auto grow = [&](const Eigen::Vector3d& p, double r) {
+    const Eigen::Vector3d q = im.direction.transpose() * p;
+    lo = lo.cwiseMin(q - Eigen::Vector3d::Constant(r));
+    hi = hi.cwiseMax(q + Eigen::Vector3d::Constant(r));
+  };
+  for (Eigen::Index i = 0; i < top.V.rows(); ++i) {
+    grow(top.V.row(i).transpose(), 0);
+    grow((top.V.row(i) + thick * nrm.row(i)).transpose(), 0);
+  }
+  if (o.labels.annulus != 0)
+    for (Eigen::Index u = 0; u < frame.annulus.rows(); ++u) grow(frame.annulus.row(u).transpose(), o.annulus_radius_mm);
+  if (o.labels.papillary != 0) {
+    const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
+    for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
+      if (frame.observed(l)) grow(frame.landmark(l) - o.papillary_radius_mm * atrial, o.papillary_radius_mm);
+  }
+  lo -= Eigen::Vector3d::Constant(o.margin_mm);
+  hi += Eigen::Vector3d::Constant(o.margin_mm);
+  lo = (lo / o.voxel_mm).array().floor().matrix() * o.voxel_mm;  // on the lattice
+  for (int k = 0; k < 3; ++k) {
+    im.size[k] = static_cast<int>(std::ceil((hi[k] - lo[k]) / o.voxel_mm)) + 1;
+    if (im.size[k] > 2000) throw Error("label map: the valve spans more than 2000 voxels");
+  }
+  im.origin = im.direction * lo;
+  return im;
+}
+
+ImageVolume union_geometry(const std::vector<ImageVolume>& boxes) {
+  if (boxes.empty()) throw Error("label map: no geometry to join");
+  ImageVolume out = boxes.front();
+  out.data.clear();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  for (const ImageVolume& b : boxes) {
+    if (!b.spacing.isApprox(out.spacing) || !b.direction.isApprox(out.direction))
+      throw Error("label map: frames of a sequence need the same voxel size and axes");
+    const Eigen::Vector3d q = out.direction.transpose() * b.origin;
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q + b.spacing.cwiseProduct(Eigen::Vector3d(b.size[0] - 1, b.size[1] - 1, b.size[2] - 1)));
+  }
+  for (int k = 0; k < 3; ++k) out.size[k] = static_cast<int>(std::lround((hi[k] - lo[k]) / out.spacing[k])) + 1;
+  out.origin = out.direction * lo;
+  return out;
+}
+
 ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   std::string err;
   if (!o.is_valid(&err)) throw Error("label map: " + err);
@@ -85,31 +141,9 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
     papillary_centre[1] = frame.landmark(Landmark::kPosteromedialPapillaryTip) - o.papillary_radius_mm * atrial;
   }
 
-  // Geometry: an axis-aligned box (in the voxel axes) around everything drawn.
-  ImageVolume im;
-  im.direction = o.direction ? *o.direction : Eigen::Matrix3d::Identity();
-  im.spacing = Eigen::Vector3d::Constant(o.voxel_mm);
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-  auto grow = [&](const Eigen::Vector3d& p, double r) {
-    const Eigen::Vector3d q = im.direction.transpose() * p;
-    lo = lo.cwiseMin(q - Eigen::Vector3d::Constant(r));
-    hi = hi.cwiseMax(q + Eigen::Vector3d::Constant(r));
-  };
-  for (Eigen::Index i = 0; i < top.V.rows(); ++i) {
-    grow(top.V.row(i).transpose(), 0);
-    grow(bottom.row(i).transpose(), 0);
-  }
-  if (with_annulus)
-    for (Eigen::Index u = 0; u < frame.annulus.rows(); ++u) grow(frame.annulus.row(u).transpose(), o.annulus_radius_mm);
-  if (with_papillary)
-    for (const auto& c : papillary_centre) grow(c, o.papillary_radius_mm);
-  lo -= Eigen::Vector3d::Constant(o.margin_mm);
-  hi += Eigen::Vector3d::Constant(o.margin_mm);
-  for (int k = 0; k < 3; ++k) {
-    im.size[k] = static_cast<int>(std::ceil((hi[k] - lo[k]) / o.voxel_mm)) + 1;
-    if (im.size[k] > 2000) throw Error("label map: the valve spans more than 2000 voxels");
-  }
-  im.origin = im.direction * lo;
+  // Geometry: the given one, or an axis-aligned box (in the voxel axes) around everything drawn.
+  ImageVolume im = o.geometry ? *o.geometry : label_map_geometry(frame, o);
+  im.data.clear();
   const int S = o.supersample;
   const std::array<long, 3> ns = {static_cast<long>(im.size[0]) * S, static_cast<long>(im.size[1]) * S,
                                   static_cast<long>(im.size[2]) * S};

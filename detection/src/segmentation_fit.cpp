@@ -133,6 +133,7 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       !im.origin.allFinite() || std::abs(im.direction.determinant()) < 1e-6)
     throw Error(source + ": label map has an invalid geometry (spacing, origin or axes)");
   FrameFit out;
+  out.source = source;
   const SegmentationLabels& L = opt.labels;
   const std::size_t nx = im.size[0], ny = im.size[1], nz = im.size[2];
   auto lin = [&](long i, long j, long k) { return static_cast<std::size_t>(i) + nx * (j + ny * static_cast<std::size_t>(k)); };

@@ -216,6 +216,8 @@ TEST_F(Cli, ImportRealSegmentation) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.find("SYNTHETIC"), std::string::npos);  // real data is never labelled synthetic
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;  // the papillary tips
+  EXPECT_NE(r.out.find("import    frame 0"), std::string::npos) << r.out;  // the fit, as import printed it
+  EXPECT_NE(r.out.find("surface -> mask"), std::string::npos) << r.out;
   const fs::path pred = seg.parent_path() / "008_pred.nii.gz";
   ASSERT_EQ(run("import --frame " + pred.string() + " --out " + path("pred.h5")).code, 0);
   ASSERT_EQ(run("import --frame " + seg.string() + " --no-annulus-label --out " + path("rim.h5")).code, 0);
@@ -348,6 +350,21 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
     const SymmetricDistance d = symmetric_surface_distance(mesh.sequence.frames[k].la_surface->triangulate(),
                                                            v.sequence.frames[k ? fc : ed].la_surface->triangulate());
     EXPECT_LT(d.symmetric.mean, 0.5) << "mesh frame " << k;
+  }
+  // Both frames as one 3D+t label map (3D Slicer's .seq.nrrd, times in the file).
+  r = run("export " + path("v.h5") + " --labelmap " + path("seq") + " --sequence --convention mvtool --frames " +
+          std::to_string(ed) + "," + std::to_string(fc));
+  ASSERT_EQ(r.code, 0) << r.err;
+  ASSERT_TRUE(fs::exists(path("seq/labels.seq.nrrd")));
+  r = run("import --sequence " + path("seq/labels.seq.nrrd") + " --markups " + m_ed + "@" + t_ed + " --out " + path("seq.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Patient sq = mvtwin::read_patient(path("seq.h5"));
+  ASSERT_EQ(sq.sequence.num_frames(), 2);
+  EXPECT_NEAR(sq.sequence.frames[1].time_s, v.sequence.frames[fc].time_s, 1e-4);
+  for (int k = 0; k < 2; ++k) {
+    const SymmetricDistance d = symmetric_surface_distance(sq.sequence.frames[k].la_surface->triangulate(),
+                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    EXPECT_LT(d.symmetric.mean, 0.5) << "sequence frame " << k;
   }
   r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
   ASSERT_EQ(r.code, 0) << r.err;

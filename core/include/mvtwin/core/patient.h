@@ -65,6 +65,9 @@ struct Patient {
   /// patient: the ground truth), never over it; `detected_by` names the model and its run.
   std::optional<ValveSequence> detected;
   std::string detected_by;
+  /// For an imported patient: how each frame was fitted (errors, what was observed, estimated
+  /// or assumed), as printed by mvtwin import and shown by mvtwin info. Empty otherwise.
+  std::string import_report;
 };
 
 }  // namespace mvtwin

@@ -1,6 +1,7 @@
 #pragma once
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -35,6 +36,9 @@ struct LabelMapOptions {
   std::uint64_t seed = 1;
   /// Voxel axes (columns, orthonormal); identity when empty.
   std::optional<Eigen::Matrix3d> direction;
+  /// The image geometry (size, spacing, origin, direction; data ignored) to rasterize into,
+  /// e.g. a box shared by every frame of a sequence; by default a box around the frame.
+  std::optional<ImageVolume> geometry;
 
   bool is_valid(std::string* error) const;
 };
@@ -44,5 +48,13 @@ struct LabelMapOptions {
 /// their labels are set and the frame has the tips). Throws mvtwin::Error for a frame without a
 /// leaflet surface or invalid options.
 ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& options);
+
+/// The default geometry of valve_label_map (no data): a box in the voxel axes around
+/// everything drawn, its origin on the lattice of `voxel_mm` so that boxes of several frames
+/// share voxel centres.
+ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& options);
+
+/// The smallest geometry holding every one of `boxes` (same spacing and axes).
+ImageVolume union_geometry(const std::vector<ImageVolume>& boxes);
 
 }  // namespace mvtwin::detection

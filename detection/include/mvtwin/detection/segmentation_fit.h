@@ -35,8 +35,10 @@ struct FrameFit {
   /// Annulus, LA surface on the (u,v) grid, commissures, posterior annulus mid-point, leaflet
   /// tips; the papillary tips when the map has a papillary label. Time 0 (the caller sets it).
   ValveFrame frame;
-  /// "annulus label" or "leaflet rim".
+  /// "annulus label", "leaflet rim" or "leaflet mesh rim".
   std::string annulus_source;
+  /// The file (and frame) it came from.
+  std::string source;
   /// Fitted surface vertices -> boundary of the leaflet mask (voxel faces), mm.
   DistanceStats surface_to_mask;
   /// Atrial-facing boundary faces of the leaflet mask -> fitted surface, mm.
