@@ -6,7 +6,6 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "output_files.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
@@ -16,6 +15,7 @@
 #include "mvtwin/detection/patient_import.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/virtual_closure.h"
+#include "output_files.h"
 
 namespace mvtwin::tools {
 namespace {
@@ -34,14 +34,20 @@ double curve_error(const Points& fitted, const Points& truth) {
 }  // namespace
 
 void register_bench_import(CLI::App& bench, Context& ctx) {
-  auto* cmd = bench.add_subcommand("import", "Segmentation import on label maps of virtual patients");
+  auto* cmd =
+      bench.add_subcommand("import", "Segmentation import on label maps of virtual patients");
   cmd->footer(
       "Example:\n  mvtwin bench import --patients 10 --json import.json\n"
-      "Virtual patients (synthetic; seeds --seed x 1000 + 1..N), their closing frames simulated without noise by\n"
-      "a small model (--closure-set), turned into label maps (end-diastole and first closed frame) at each voxel\n"
-      "size and convention with partial-volume boundary noise, and imported back with their papillary tips\n"
-      "estimated (not given). Per row (voxel size, convention): symmetric surface error against the virtual\n"
-      "surfaces (open and closed frames), annulus error, papillary tip error of the estimate, s per frame (one core).");
+      "Virtual patients (synthetic; seeds --seed x 1000 + 1..N), their closing frames simulated "
+      "without noise by\n"
+      "a small model (--closure-set), turned into label maps (end-diastole and first closed frame) "
+      "at each voxel\n"
+      "size and convention with partial-volume boundary noise, and imported back with their "
+      "papillary tips\n"
+      "estimated (not given). Per row (voxel size, convention): symmetric surface error against "
+      "the virtual\n"
+      "surfaces (open and closed frames), annulus error, papillary tip error of the estimate, s "
+      "per frame (one core).");
   auto n = std::make_shared<int>(10);
   auto seed = std::make_shared<unsigned>(4040);
   auto json_path = std::make_shared<std::string>();
@@ -53,7 +59,8 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
   cmd->add_option("--seed", *seed, "cohort seed")->default_val(4040);
   cmd->add_option("--voxels", *voxels, "voxel sizes, mm")->delimiter(',')->default_str("0.5,0.8");
   cmd->add_option("--boundary-noise", *noise, "partial-volume noise SD")->default_val(0.15);
-  cmd->add_option("--closure-set", *closure_sets, "name=value for the model simulating the closed frames");
+  cmd->add_option("--closure-set", *closure_sets,
+                  "name=value for the model simulating the closed frames");
   cmd->add_option("--json", *json_path, "write the figures as JSON");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
@@ -67,14 +74,18 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
         std::vector<double> a, b;
         before.for_each([&](const std::string&, double v, const char*) { a.push_back(v); });
         after.for_each([&](const std::string&, double v, const char*) { b.push_back(v); });
-        if (a != b) throw Error("--closure-set " + s + ": a patient parameter; the virtual patients' hidden ones are simulated");
+        if (a != b)
+          throw Error("--closure-set " + s +
+                      ": a patient parameter; the virtual patients' hidden ones are simulated");
       }
       vo.noise_mm = 0.0;
       std::vector<Patient> patients;
       for (int i = 0; i < *n; ++i) {
-        Patient p = make_virtual_patient(static_cast<std::uint64_t>(*seed) * 1000 + 1 + static_cast<std::uint64_t>(i));
+        Patient p = make_virtual_patient(static_cast<std::uint64_t>(*seed) * 1000 + 1 +
+                                         static_cast<std::uint64_t>(i));
         forward::simulate_observed_closure(&p, vo);
-        std::cout << "patient " << i + 1 << "/" << *n << ": " << p.id << " [SYNTHETIC] simulated\n" << std::flush;
+        std::cout << "patient " << i + 1 << "/" << *n << ": " << p.id << " [SYNTHETIC] simulated\n"
+                  << std::flush;
         patients.push_back(std::move(p));
       }
       nlohmann::json rows = nlohmann::json::array(), per_patient = nlohmann::json::array();
@@ -91,7 +102,8 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
             std::vector<detection::LabelFrame> lf;
             for (int f : {s.end_diastole, s.first_closed}) {
               lo.seed = p.provenance.seed * 7 + static_cast<std::uint64_t>(f);
-              lf.push_back({detection::valve_label_map(s.frames[f], lo), s.frames[f].time_s, p.id + "/" + std::to_string(f), std::nullopt, std::nullopt});
+              lf.push_back({detection::valve_label_map(s.frames[f], lo), s.frames[f].time_s,
+                            p.id + "/" + std::to_string(f), std::nullopt, std::nullopt});
             }
             detection::PatientImportOptions io;
             io.fit.labels = lo.labels;
@@ -103,39 +115,63 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
               secs += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
               frames += 2;
               const ValveSequence& q = r.patient.sequence;
-              const double e_open = symmetric_surface_distance(q.frames[0].la_surface->triangulate(),
-                                                               s.frames[s.end_diastole].la_surface->triangulate()).symmetric.mean;
-              const double e_closed = symmetric_surface_distance(q.frames[1].la_surface->triangulate(),
-                                                                 s.frames[s.first_closed].la_surface->triangulate()).symmetric.mean;
-              const double e_ann = 0.5 * (curve_error(q.frames[0].annulus, s.frames[s.end_diastole].annulus) +
-                                          curve_error(q.frames[1].annulus, s.frames[s.first_closed].annulus));
+              const double e_open =
+                  symmetric_surface_distance(q.frames[0].la_surface->triangulate(),
+                                             s.frames[s.end_diastole].la_surface->triangulate())
+                      .symmetric.mean;
+              const double e_closed =
+                  symmetric_surface_distance(q.frames[1].la_surface->triangulate(),
+                                             s.frames[s.first_closed].la_surface->triangulate())
+                      .symmetric.mean;
+              const double e_ann =
+                  0.5 * (curve_error(q.frames[0].annulus, s.frames[s.end_diastole].annulus) +
+                         curve_error(q.frames[1].annulus, s.frames[s.first_closed].annulus));
               double e_pap = 0;
-              for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
-                e_pap += 0.5 * (q.frames[0].landmark(l) - s.frames[s.end_diastole].landmark(l)).norm();
+              for (Landmark l :
+                   {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
+                e_pap +=
+                    0.5 * (q.frames[0].landmark(l) - s.frames[s.end_diastole].landmark(l)).norm();
               open += e_open;
               closed += e_closed;
               ann += e_ann;
               pap += e_pap;
-              per_patient.push_back({{"patient", p.id}, {"pathology", pathology_name(p.truth->pathology)}, {"voxel_mm", voxel},
-                                     {"convention", conv}, {"surface_error_open_mm", e_open}, {"surface_error_closed_mm", e_closed},
-                                     {"annulus_error_mm", e_ann}, {"papillary_error_mm", e_pap}});
+              per_patient.push_back({{"patient", p.id},
+                                     {"pathology", pathology_name(p.truth->pathology)},
+                                     {"voxel_mm", voxel},
+                                     {"convention", conv},
+                                     {"surface_error_open_mm", e_open},
+                                     {"surface_error_closed_mm", e_closed},
+                                     {"annulus_error_mm", e_ann},
+                                     {"papillary_error_mm", e_pap}});
             } catch (const Error& e) {
               ++failed;
-              per_patient.push_back({{"patient", p.id}, {"voxel_mm", voxel}, {"convention", conv}, {"failed", e.what()}});
-              std::cout << "  " << p.id << " " << conv << " " << voxel << " mm: FAILED: " << e.what() << "\n";
+              per_patient.push_back({{"patient", p.id},
+                                     {"voxel_mm", voxel},
+                                     {"convention", conv},
+                                     {"failed", e.what()}});
+              std::cout << "  " << p.id << " " << conv << " " << voxel
+                        << " mm: FAILED: " << e.what() << "\n";
             }
           }
           const int ok = static_cast<int>(patients.size()) - failed;
           const double k = ok > 0 ? 1.0 / ok : std::nan("");
-          nlohmann::json row = {{"voxel_mm", voxel}, {"convention", conv}, {"patients", ok}, {"failed", failed},
-                                {"surface_error_open_mm", open * k}, {"surface_error_closed_mm", closed * k},
-                                {"annulus_error_mm", ann * k}, {"papillary_error_mm", pap * k},
+          nlohmann::json row = {{"voxel_mm", voxel},
+                                {"convention", conv},
+                                {"patients", ok},
+                                {"failed", failed},
+                                {"surface_error_open_mm", open * k},
+                                {"surface_error_closed_mm", closed * k},
+                                {"annulus_error_mm", ann * k},
+                                {"papillary_error_mm", pap * k},
                                 {"papillary", "estimated from anatomy (not given)"},
                                 {"s_per_frame", frames > 0 ? secs / frames : std::nan("")}};
           rows.push_back(row);
-          std::printf("voxel %.1f mm %-7s: surface open %.3f mm, closed %.3f mm, annulus %.3f mm, papillary (estimated) %.1f mm, "
-                      "%.2f s/frame, %d failed\n",
-                      voxel, conv.c_str(), open * k, closed * k, ann * k, pap * k, frames > 0 ? secs / frames : 0.0, failed);
+          std::printf(
+              "voxel %.1f mm %-7s: surface open %.3f mm, closed %.3f mm, annulus %.3f mm, "
+              "papillary (estimated) %.1f mm, "
+              "%.2f s/frame, %d failed\n",
+              voxel, conv.c_str(), open * k, closed * k, ann * k, pap * k,
+              frames > 0 ? secs / frames : 0.0, failed);
         }
       }
       nlohmann::json j = {{"benchmark", "import"},

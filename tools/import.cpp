@@ -32,7 +32,8 @@ std::pair<std::string, std::optional<double>> split_time(const std::string& arg)
   char* end = nullptr;
   const double v = std::strtod(t.c_str(), &end);
   if (end == t.c_str() || *end != '\0') return {arg, std::nullopt};
-  if (!std::isfinite(v) || v < 0) throw Error(arg + ": the frame time '" + t + "' must be a finite time >= 0 in s");
+  if (!std::isfinite(v) || v < 0)
+    throw Error(arg + ": the frame time '" + t + "' must be a finite time >= 0 in s");
   return {arg.substr(0, at), v};
 }
 
@@ -43,7 +44,8 @@ bool ends_with(std::string s, const std::string& e) {
 
 /// Reads the label maps of one file: a 3D map, a 3D+t sequence (4D NIfTI, Slicer .seq.nrrd,
 /// 4D MetaImage), or a Slicer segmentation (.seg.nrrd) whose segment names give the labels.
-std::vector<detection::LabelFrame> read_label_file(const std::string& file, std::optional<double> time, bool sequence,
+std::vector<detection::LabelFrame> read_label_file(const std::string& file,
+                                                   std::optional<double> time, bool sequence,
                                                    bool explicit_labels) {
   if (!fs::exists(file)) throw Error(file + ": no such file");
   std::vector<detection::LabelFrame> out;
@@ -60,41 +62,59 @@ std::vector<detection::LabelFrame> read_label_file(const std::string& file, std:
     // layers, read here as the 4th axis.
     std::map<std::string, std::pair<int, int>> role;  // role -> (layer, value)
     std::string names;
-    for (int s = 0; kv.count("Segment" + std::to_string(s) + "_Name") || kv.count("Segment" + std::to_string(s) + "_LabelValue"); ++s) {
+    for (int s = 0; kv.count("Segment" + std::to_string(s) + "_Name") ||
+                    kv.count("Segment" + std::to_string(s) + "_LabelValue");
+         ++s) {
       const std::string k = "Segment" + std::to_string(s) + "_";
       const std::string nm = kv.count(k + "Name") ? kv[k + "Name"] : "";
-      const int value = kv.count(k + "LabelValue") ? std::stoi(kv[k + "LabelValue"]) : s + 1;
-      const int layer = kv.count(k + "Layer") ? std::stoi(kv[k + "Layer"]) : 0;
+      auto integer = [&](const std::string& key, int fallback) {
+        if (!kv.count(key)) return fallback;
+        char* e = nullptr;
+        const long v = std::strtol(kv[key].c_str(), &e, 10);
+        if (e == kv[key].c_str() || v < 0 || v > 1000000)
+          throw Error(file + ": " + key + " is not a valid number ('" + kv[key] + "')");
+        return static_cast<int>(v);
+      };
+      const int value = integer(k + "LabelValue", s + 1);
+      const int layer = integer(k + "Layer", 0);
       names += (names.empty() ? "'" : ", '") + nm + "'";
       const std::string r = detection::segment_role(nm);
       if (r.empty()) continue;
-      if (role.count(r)) throw Error(file + ": two segments are the " + r + " (" + names + "); give --labels");
+      if (role.count(r))
+        throw Error(file + ": two segments are the " + r + " (" + names + "); give --labels");
       if (layer < 0 || layer >= static_cast<int>(vols.size()))
-        throw Error(file + ": segment '" + nm + "' is on layer " + std::to_string(layer) + " of " + std::to_string(vols.size()));
+        throw Error(file + ": segment '" + nm + "' is on layer " + std::to_string(layer) + " of " +
+                    std::to_string(vols.size()));
       role[r] = {layer, value};
     }
     if (!role.count("anterior") || !role.count("posterior")) {
       throw Error(file + ": the segment names (" + names +
-                  ") name no anterior and posterior leaflet; rename them (e.g. 'anterior leaflet') or give --labels");
+                  ") name no anterior and posterior leaflet; rename them (e.g. 'anterior leaflet') "
+                  "or give --labels");
     }
     ImageVolume merged = vols[0];
     std::fill(merged.data.begin(), merged.data.end(), 0.0f);
-    const std::map<std::string, float> code = {{"annulus", 1.f}, {"anterior", 2.f}, {"posterior", 3.f}, {"papillary", 4.f}};
+    const std::map<std::string, float> code = {
+        {"annulus", 1.f}, {"anterior", 2.f}, {"posterior", 3.f}, {"papillary", 4.f}};
     for (const auto& [r, lv] : role) {
       const auto& src = vols[static_cast<size_t>(lv.first)].data;
       for (size_t v = 0; v < src.size(); ++v)
         if (std::lround(src[v]) == lv.second) merged.data[v] = code.at(r);
     }
-    detection::SegmentationLabels labels{2, 3, role.count("annulus") ? 1 : 0, role.count("papillary") ? 4 : 0, "segment names"};
+    detection::SegmentationLabels labels{2, 3, role.count("annulus") ? 1 : 0,
+                                         role.count("papillary") ? 4 : 0, "segment names"};
     out.push_back({std::move(merged), time.value_or(0.0), file, labels, std::nullopt});
     return out;
   }
   if (vols.size() > 1 && !sequence) {
-    throw Error(file + ": holds " + std::to_string(vols.size()) + " frames; give it with --sequence (3D+t), not --frame");
+    throw Error(file + ": holds " + std::to_string(vols.size()) +
+                " frames; give it with --sequence (3D+t), not --frame");
   }
   for (size_t f = 0; f < vols.size(); ++f) {
     const double t = vols.size() > 1 ? vols[f].time_s : time.value_or(vols[f].time_s);
-    out.push_back({std::move(vols[f]), t, vols.size() > 1 ? file + "[" + std::to_string(f) + "]" : file, std::nullopt, std::nullopt});
+    out.push_back({std::move(vols[f]), t,
+                   vols.size() > 1 ? file + "[" + std::to_string(f) + "]" : file, std::nullopt,
+                   std::nullopt});
   }
   return out;
 }
@@ -107,24 +127,38 @@ std::string fmt(double v, int prec = 2) {
 }
 
 nlohmann::json stats_json(const DistanceStats& d) {
-  return {{"mean_mm", d.mean}, {"sd_mm", d.sd}, {"p95_mm", d.p95}, {"max_mm", d.max}, {"count", d.count}};
+  return {{"mean_mm", d.mean},
+          {"sd_mm", d.sd},
+          {"p95_mm", d.p95},
+          {"max_mm", d.max},
+          {"count", d.count}};
 }
 
 }  // namespace
 
 void register_import(CLI::App& app, Context& ctx) {
-  auto* cmd = app.add_subcommand("import", "Build a real patient from segmentations (label maps) and landmarks");
+  auto* cmd = app.add_subcommand(
+      "import", "Build a real patient from segmentations (label maps) and landmarks");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin import --frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json --out p.h5\n"
-      "  mvtwin import --sequence valve.seq.nrrd --convention mvseg --papillary-label 4 --out p.h5\n"
-      "  mvtwin import --frame 008_gt.nii.gz --out 008.h5          # one closed frame: measured, not simulated\n"
-      "  mvtwin import --mesh ed_al.stl,ed_pl.stl@0 --mesh es.vtp@0.24 --markups tips.mrk.json --out p.h5\n"
-      "Label maps: .nii/.nii.gz (3D, or 4D with --sequence), .nrrd/.nhdr, 3D Slicer .seg.nrrd (segments found by\n"
-      "name) and .seq.nrrd, .mha/.mhd. Labels: --convention mvtool (1 annulus, 2 anterior, 3 posterior; the\n"
-      "default) or mvseg (1 posterior, 2 anterior, no annulus), or --labels ANTERIOR,POSTERIOR[,ANNULUS] (0: none).\n"
-      "Without an annulus label the annulus is the leaflets' attachment rim. Landmarks: --markups FILE[@TIME]\n"
-      "(.mrk.json or .fcsv; matched by label, see docs/import.md; without @TIME: every frame). Papillary tips\n"
+      "  mvtwin import --frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json "
+      "--out p.h5\n"
+      "  mvtwin import --sequence valve.seq.nrrd --convention mvseg --papillary-label 4 --out "
+      "p.h5\n"
+      "  mvtwin import --frame 008_gt.nii.gz --out 008.h5          # one closed frame: measured, "
+      "not simulated\n"
+      "  mvtwin import --mesh ed_al.stl,ed_pl.stl@0 --mesh es.vtp@0.24 --markups tips.mrk.json "
+      "--out p.h5\n"
+      "Label maps: .nii/.nii.gz (3D, or 4D with --sequence), .nrrd/.nhdr, 3D Slicer .seg.nrrd "
+      "(segments found by\n"
+      "name) and .seq.nrrd, .mha/.mhd. Labels: --convention mvtool (1 annulus, 2 anterior, 3 "
+      "posterior; the\n"
+      "default) or mvseg (1 posterior, 2 anterior, no annulus), or --labels "
+      "ANTERIOR,POSTERIOR[,ANNULUS] (0: none).\n"
+      "Without an annulus label the annulus is the leaflets' attachment rim. Landmarks: --markups "
+      "FILE[@TIME]\n"
+      "(.mrk.json or .fcsv; matched by label, see docs/import.md; without @TIME: every frame). "
+      "Papillary tips\n"
       "neither labelled nor given are ASSUMED from published anatomy, and every report says so.\n"
       "End-diastole and the first closed frame: the largest and smallest leaflet opening, or\n"
       "--end-diastole I --first-closed I (frame indices in time order).");
@@ -144,26 +178,41 @@ void register_import(CLI::App& app, Context& ctx) {
   auto force = std::make_shared<bool>(false);
   auto opt = std::make_shared<detection::PatientImportOptions>();
   cmd->add_option("--frame", *frames, "label map of one frame, FILE or FILE@TIME (s); repeatable");
-  cmd->add_option("--sequence", *sequences, "3D+t label maps (4D NIfTI, .seq.nrrd, 4D .mha); times from the file");
+  cmd->add_option("--sequence", *sequences,
+                  "3D+t label maps (4D NIfTI, .seq.nrrd, 4D .mha); times from the file");
   cmd->add_option("--mesh", *meshes,
-                  "leaflet surfaces of one frame instead of a label map: ANTERIOR,POSTERIOR[@TIME] or BOTH[@TIME] "
+                  "leaflet surfaces of one frame instead of a label map: ANTERIOR,POSTERIOR[@TIME] "
+                  "or BOTH[@TIME] "
                   "(.stl, .ply, .vtk, .vtp); repeatable");
-  cmd->add_option("--mesh-space", *mesh_space, "ras or lps (default: the file's SPACE= mark, else RAS)")
+  cmd->add_option("--mesh-space", *mesh_space,
+                  "ras or lps (default: the file's SPACE= mark, else RAS)")
       ->check(CLI::IsMember({"ras", "lps"}));
-  cmd->add_option("--markups", *markups, "3D Slicer markups FILE or FILE@TIME (.mrk.json, .fcsv); repeatable");
-  cmd->add_option("--markup-order", *order, "landmark names of unlabelled markup points, in order")->delimiter(',');
-  auto* conv = cmd->add_option("--convention", *convention, "label convention: mvtool (default) or mvseg");
-  cmd->add_option("--labels", *labels, "label values ANTERIOR,POSTERIOR[,ANNULUS] (0: no annulus label)")
+  cmd->add_option("--markups", *markups,
+                  "3D Slicer markups FILE or FILE@TIME (.mrk.json, .fcsv); repeatable");
+  cmd->add_option("--markup-order", *order, "landmark names of unlabelled markup points, in order")
+      ->delimiter(',');
+  auto* conv =
+      cmd->add_option("--convention", *convention, "label convention: mvtool (default) or mvseg");
+  cmd->add_option("--labels", *labels,
+                  "label values ANTERIOR,POSTERIOR[,ANNULUS] (0: no annulus label)")
       ->delimiter(',')
       ->expected(2, 3)
       ->excludes(conv);
-  cmd->add_option("--papillary-label", *papillary, "label value of the papillary muscles (their tips)");
-  cmd->add_flag("--no-annulus-label", *no_ring, "fit the annulus to the leaflet rim even when it is labelled");
-  cmd->add_option("--atrium", *atrium, "direction into the left atrium, x,y,z (default: inferred)")->delimiter(',')->expected(3);
-  cmd->add_option("--end-diastole", opt->end_diastole, "end-diastolic frame index (time order; default: from the opening)");
-  cmd->add_option("--first-closed", opt->first_closed, "first closed frame index (default: from the opening)");
-  cmd->add_option("--ures", opt->fit.ures, "grid points around the annulus (even, >= 8)")->default_val(30);
-  cmd->add_option("--vres", opt->fit.vres, "grid points from annulus to free edge (>= 3)")->default_val(30);
+  cmd->add_option("--papillary-label", *papillary,
+                  "label value of the papillary muscles (their tips)");
+  cmd->add_flag("--no-annulus-label", *no_ring,
+                "fit the annulus to the leaflet rim even when it is labelled");
+  cmd->add_option("--atrium", *atrium, "direction into the left atrium, x,y,z (default: inferred)")
+      ->delimiter(',')
+      ->expected(3);
+  cmd->add_option("--end-diastole", opt->end_diastole,
+                  "end-diastolic frame index (time order; default: from the opening)");
+  cmd->add_option("--first-closed", opt->first_closed,
+                  "first closed frame index (default: from the opening)");
+  cmd->add_option("--ures", opt->fit.ures, "grid points around the annulus (even, >= 8)")
+      ->default_val(30);
+  cmd->add_option("--vres", opt->fit.vres, "grid points from annulus to free edge (>= 3)")
+      ->default_val(30);
   cmd->add_option("--id", opt->id, "patient identifier (default: the first file's name)");
   cmd->add_option("--json", *json_out, "also write the fit report as JSON");
   cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
@@ -171,23 +220,28 @@ void register_import(CLI::App& app, Context& ctx) {
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
       if (frames->empty() && sequences->empty() && meshes->empty())
-        throw Error("import: give label maps with --frame FILE[@TIME] or --sequence FILE, or surfaces with --mesh");
+        throw Error(
+            "import: give label maps with --frame FILE[@TIME] or --sequence FILE, or surfaces with "
+            "--mesh");
       refuse_overwrite_path(*out, *force);
       if (!json_out->empty()) refuse_overwrite_path(*json_out, *force);
       detection::PatientImportOptions o = *opt;
       const bool explicit_labels = !labels->empty();
       if (explicit_labels) {
-        o.fit.labels = {(*labels)[0], (*labels)[1], labels->size() > 2 ? (*labels)[2] : 0, 0, "explicit"};
+        o.fit.labels = {(*labels)[0], (*labels)[1], labels->size() > 2 ? (*labels)[2] : 0, 0,
+                        "explicit"};
       } else {
         o.fit.labels = detection::segmentation_labels(convention->empty() ? "mvtool" : *convention);
       }
       o.fit.labels.papillary = *papillary;
       o.fit.use_annulus_label = !*no_ring;
-      if (!atrium->empty()) o.fit.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
+      if (!atrium->empty())
+        o.fit.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
       std::vector<detection::LabelFrame> lf;
       for (const std::string& a : *frames) {
         const auto [file, time] = split_time(a);
-        for (auto& f : read_label_file(file, time, false, explicit_labels)) lf.push_back(std::move(f));
+        for (auto& f : read_label_file(file, time, false, explicit_labels))
+          lf.push_back(std::move(f));
         if (!time && frames->size() + meshes->size() > 1)
           throw Error(file + ": several frames need their times: give each as FILE@TIME (s)");
       }
@@ -198,13 +252,17 @@ void register_import(CLI::App& app, Context& ctx) {
         std::vector<std::string> names;
         std::stringstream ss(files);
         for (std::string n; std::getline(ss, n, ',');) names.push_back(n);
-        if (names.empty() || names.size() > 2) throw Error("--mesh " + a + ": one file (both leaflets) or two (anterior,posterior)");
+        if (names.empty() || names.size() > 2)
+          throw Error("--mesh " + a + ": one file (both leaflets) or two (anterior,posterior)");
         std::vector<TriangleMesh> ms;
         for (const std::string& n : names) {
           SurfaceFile sf = read_surface_mesh(n);
-          const std::string space = mesh_space->empty() ? (sf.space.empty() ? "RAS" : sf.space) : (*mesh_space == "lps" ? "LPS" : "RAS");
+          const std::string space = mesh_space->empty() ? (sf.space.empty() ? "RAS" : sf.space)
+                                                        : (*mesh_space == "lps" ? "LPS" : "RAS");
           if (sf.space.empty() && mesh_space->empty())
-            std::cout << n << ": no SPACE= mark in the file: taken as RAS (--mesh-space lps if it is LPS, as 3D Slicer writes)\n";
+            std::cout << n
+                      << ": no SPACE= mark in the file: taken as RAS (--mesh-space lps if it is "
+                         "LPS, as 3D Slicer writes)\n";
           if (space == "LPS") sf.mesh.V.leftCols(2) *= -1.0;
           ms.push_back(std::move(sf.mesh));
         }
@@ -215,12 +273,15 @@ void register_import(CLI::App& app, Context& ctx) {
           f.meshes = std::make_pair(ms[0], ms[1]);
         } else {
           f.meshes = detection::split_leaflet_meshes(ms[0], names[0]);
-          std::cout << names[0] << ": two pieces; the rounder one is taken as the anterior leaflet, the crescent as the posterior\n";
+          std::cout << names[0]
+                    << ": two pieces; the rounder one is taken as the anterior leaflet, the "
+                       "crescent as the posterior\n";
         }
         lf.push_back(std::move(f));
       }
       for (const std::string& s : *sequences)
-        for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels)) lf.push_back(std::move(f));
+        for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels))
+          lf.push_back(std::move(f));
       std::vector<Landmark> ord;
       for (const std::string& n : *order) {
         const auto l = detection::landmark_from_label(n);
@@ -237,26 +298,36 @@ void register_import(CLI::App& app, Context& ctx) {
       detection::PatientImport r = detection::import_patient(std::move(lf), lm, o);
       r.patient.provenance.command = ctx.command_line;
       const ValveSequence& seq = r.patient.sequence;
-      nlohmann::json report = {{"mvtwin_version", kVersion}, {"command", ctx.command_line}, {"created_utc", utc_now_iso8601()},
-                               {"patient_id", r.patient.id}, {"synthetic", false}, {"labels", o.fit.labels.describe()},
-                               {"end_diastole", seq.end_diastole}, {"first_closed", seq.first_closed},
-                               {"assumed", r.assumed}, {"notes", r.notes}, {"frames", nlohmann::json::array()}};
+      nlohmann::json report = {{"mvtwin_version", kVersion},
+                               {"command", ctx.command_line},
+                               {"created_utc", utc_now_iso8601()},
+                               {"patient_id", r.patient.id},
+                               {"synthetic", false},
+                               {"labels", o.fit.labels.describe()},
+                               {"end_diastole", seq.end_diastole},
+                               {"first_closed", seq.first_closed},
+                               {"assumed", r.assumed},
+                               {"notes", r.notes},
+                               {"frames", nlohmann::json::array()}};
       std::ostringstream rep;
       for (size_t f = 0; f < r.fits.size(); ++f) {
         const detection::FrameFit& fit = r.fits[f];
-        const std::string phase = static_cast<int>(f) == seq.end_diastole ? "  [end-diastole]"
-                                  : static_cast<int>(f) == seq.first_closed ? "  [first closed]" : "";
-        rep << "frame " << f << " (" << fit.source << ") t=" << fmt(seq.frames[f].time_s, 3) << " s" << phase << ": "
-                  << fit.anterior_voxels << " anterior / " << fit.posterior_voxels << " posterior voxels, orifice "
-                  << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
-        rep << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 " << fmt(fit.surface_to_mask.p95)
-                  << "), atrial mask -> surface " << fmt(fit.mask_to_surface.mean) << " mm (p95 "
-                  << fmt(fit.mask_to_surface.p95) << ")\n";
+        const std::string phase = static_cast<int>(f) == seq.end_diastole   ? "  [end-diastole]"
+                                  : static_cast<int>(f) == seq.first_closed ? "  [first closed]"
+                                                                            : "";
+        rep << "frame " << f << " (" << fit.source << ") t=" << fmt(seq.frames[f].time_s, 3) << " s"
+            << phase << ": " << fit.anterior_voxels << " anterior / " << fit.posterior_voxels
+            << " posterior voxels, orifice " << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
+        rep << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 "
+            << fmt(fit.surface_to_mask.p95) << "), atrial mask -> surface "
+            << fmt(fit.mask_to_surface.mean) << " mm (p95 " << fmt(fit.mask_to_surface.p95)
+            << ")\n";
         rep << "  annulus: " << fit.annulus_source;
-        if (fit.annulus_to_label) rep << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
+        if (fit.annulus_to_label)
+          rep << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
         if (fit.rim_vs_label)
-          rep << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it (" << fmt(fit.rim_to_label_voxels->mean)
-                    << " mm from the label's voxels)";
+          rep << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it ("
+              << fmt(fit.rim_to_label_voxels->mean) << " mm from the label's voxels)";
         rep << "\n";
         std::string obs, ass;
         for (int l = 0; l < kNumLandmarks; ++l) {
@@ -279,7 +350,8 @@ void register_import(CLI::App& app, Context& ctx) {
                              {"warnings", fit.warnings}};
         if (fit.annulus_to_label) fj["annulus_to_label"] = stats_json(*fit.annulus_to_label);
         if (fit.rim_vs_label) fj["rim_vs_label"] = stats_json(*fit.rim_vs_label);
-        if (fit.rim_to_label_voxels) fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
+        if (fit.rim_to_label_voxels)
+          fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
         report["frames"].push_back(fj);
       }
       for (const auto& n : r.notes) rep << "note: " << n << "\n";
@@ -296,7 +368,8 @@ void register_import(CLI::App& app, Context& ctx) {
           if (!f) throw Error(*json_out + ": write failed");
         });
       }
-      std::cout << "wrote " << *out << " (real patient " << r.patient.id << ", " << seq.num_frames() << " frame(s))\n";
+      std::cout << "wrote " << *out << " (real patient " << r.patient.id << ", " << seq.num_frames()
+                << " frame(s))\n";
       return 0;
     };
   });

@@ -49,7 +49,8 @@ MarkupList read_markups(const std::filesystem::path& path) {
   const std::string text = ss.str();
   MarkupList out;
   std::string lname = what;
-  std::transform(lname.begin(), lname.end(), lname.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(lname.begin(), lname.end(), lname.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   if (ends_with(lname, ".fcsv")) {
     out.coordinate_system = "RAS";
     std::istringstream ls(text);
@@ -64,10 +65,13 @@ MarkupList read_markups(const std::filesystem::path& path) {
         if (eq == std::string::npos) continue;
         std::string key = trim(line.substr(1, eq - 1));
         const std::string value = trim(line.substr(eq + 1));
-        std::transform(key.begin(), key.end(), key.begin(), [](unsigned char c) { return std::tolower(c); });
+        std::transform(key.begin(), key.end(), key.begin(),
+                       [](unsigned char c) { return std::tolower(c); });
         if (key == "coordinatesystem") {
           to_ras(value, what);
-          out.coordinate_system = upper(value) == "0" ? "RAS" : upper(value) == "1" ? "LPS" : upper(value);
+          out.coordinate_system = upper(value) == "0"   ? "RAS"
+                                  : upper(value) == "1" ? "LPS"
+                                                        : upper(value);
         }
         if (key == "columns") {
           columns.clear();
@@ -89,7 +93,8 @@ MarkupList read_markups(const std::filesystem::path& path) {
       const int cx = col("x"), cy = col("y"), cz = col("z"), cl = col("label");
       if (cx < 0 || cy < 0 || cz < 0) throw Error(what + ": the columns header has no x, y, z");
       if (static_cast<int>(cells.size()) <= std::max({cx, cy, cz}))
-        throw Error(what + ": row " + std::to_string(row) + " has " + std::to_string(cells.size()) + " cells");
+        throw Error(what + ": row " + std::to_string(row) + " has " + std::to_string(cells.size()) +
+                    " cells");
       MarkupPoint p;
       for (int k = 0; k < 3; ++k) {
         const std::string& cell = cells[static_cast<size_t>(k == 0 ? cx : k == 1 ? cy : cz)];
@@ -98,7 +103,8 @@ MarkupList read_markups(const std::filesystem::path& path) {
         if (end == cell.c_str() || *end != '\0')
           throw Error(what + ": row " + std::to_string(row) + ": '" + cell + "' is not a number");
       }
-      p.label = cl >= 0 && cl < static_cast<int>(cells.size()) ? cells[static_cast<size_t>(cl)] : "";
+      p.label =
+          cl >= 0 && cl < static_cast<int>(cells.size()) ? cells[static_cast<size_t>(cl)] : "";
       out.points.push_back(p);
     }
   } else {
@@ -121,9 +127,11 @@ MarkupList read_markups(const std::filesystem::path& path) {
       if (!m["controlPoints"].is_array()) throw Error(what + ": \"controlPoints\" is not a list");
       for (const auto& c : m["controlPoints"]) {
         MarkupPoint p;
-        p.label = c.contains("label") && c["label"].is_string() ? c["label"].get<std::string>() : "";
-        const std::string status =
-            c.contains("positionStatus") && c["positionStatus"].is_string() ? c["positionStatus"].get<std::string>() : "defined";
+        p.label =
+            c.contains("label") && c["label"].is_string() ? c["label"].get<std::string>() : "";
+        const std::string status = c.contains("positionStatus") && c["positionStatus"].is_string()
+                                       ? c["positionStatus"].get<std::string>()
+                                       : "defined";
         if (status != "defined" && status != "preview") {
           out.skipped.push_back(p.label);
           continue;
@@ -144,7 +152,8 @@ MarkupList read_markups(const std::filesystem::path& path) {
     for (auto& p : out.points) p.position = p.position.cwiseProduct(Eigen::Vector3d(-1, -1, 1));
   }
   for (const auto& p : out.points) {
-    if (!p.position.allFinite()) throw Error(what + ": control point '" + p.label + "' has a NaN/Inf coordinate");
+    if (!p.position.allFinite())
+      throw Error(what + ": control point '" + p.label + "' has a NaN/Inf coordinate");
   }
   if (out.points.empty()) throw Error(what + ": the markups file holds no defined control points");
   return out;
@@ -165,11 +174,18 @@ void write_markups_json(const std::filesystem::path& path, const std::vector<Mar
                    {"visibility", true},
                    {"positionStatus", "defined"}});
   }
-  nlohmann::json j = {
-      {"@schema", "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/markups-schema-v1.0.3.json#"},
-      {"markups", {{{"type", "Fiducial"}, {"coordinateSystem", "LPS"}, {"coordinateUnits", "mm"}, {"locked", false},
-                    {"fixedNumberOfControlPoints", false}, {"labelFormat", "%N-%d"}, {"lastUsedControlPointNumber", points.size()},
-                    {"controlPoints", cps}}}}};
+  nlohmann::json j = {{"@schema",
+                       "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/"
+                       "Markups/Resources/Schema/markups-schema-v1.0.3.json#"},
+                      {"markups",
+                       {{{"type", "Fiducial"},
+                         {"coordinateSystem", "LPS"},
+                         {"coordinateUnits", "mm"},
+                         {"locked", false},
+                         {"fixedNumberOfControlPoints", false},
+                         {"labelFormat", "%N-%d"},
+                         {"lastUsedControlPointNumber", points.size()},
+                         {"controlPoints", cps}}}}};
   const std::string text = j.dump(4);
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     std::ofstream f(tmp, std::ios::binary);

@@ -77,11 +77,13 @@ ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& o
     grow((top.V.row(i) + thick * nrm.row(i)).transpose(), 0);
   }
   if (o.labels.annulus != 0)
-    for (Eigen::Index u = 0; u < frame.annulus.rows(); ++u) grow(frame.annulus.row(u).transpose(), o.annulus_radius_mm);
+    for (Eigen::Index u = 0; u < frame.annulus.rows(); ++u)
+      grow(frame.annulus.row(u).transpose(), o.annulus_radius_mm);
   if (o.labels.papillary != 0) {
     const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
     for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
-      if (frame.observed(l)) grow(frame.landmark(l) - o.papillary_radius_mm * atrial, o.papillary_radius_mm);
+      if (frame.observed(l))
+        grow(frame.landmark(l) - o.papillary_radius_mm * atrial, o.papillary_radius_mm);
   }
   lo -= Eigen::Vector3d::Constant(o.margin_mm);
   hi += Eigen::Vector3d::Constant(o.margin_mm);
@@ -104,9 +106,11 @@ ImageVolume union_geometry(const std::vector<ImageVolume>& boxes) {
       throw Error("label map: frames of a sequence need the same voxel size and axes");
     const Eigen::Vector3d q = out.direction.transpose() * b.origin;
     lo = lo.cwiseMin(q);
-    hi = hi.cwiseMax(q + b.spacing.cwiseProduct(Eigen::Vector3d(b.size[0] - 1, b.size[1] - 1, b.size[2] - 1)));
+    hi = hi.cwiseMax(
+        q + b.spacing.cwiseProduct(Eigen::Vector3d(b.size[0] - 1, b.size[1] - 1, b.size[2] - 1)));
   }
-  for (int k = 0; k < 3; ++k) out.size[k] = static_cast<int>(std::lround((hi[k] - lo[k]) / out.spacing[k])) + 1;
+  for (int k = 0; k < 3; ++k)
+    out.size[k] = static_cast<int>(std::lround((hi[k] - lo[k]) / out.spacing[k])) + 1;
   out.origin = out.direction * lo;
   return out;
 }
@@ -126,26 +130,30 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   for (int v = 0; v < V; ++v) {
     for (int u = 0; u < U; ++u) {
       const int i = v * U + u;
-      const double t = g.column_tag(u) == LeafletTag::kAnterior ? o.al_thickness_mm : o.pl_thickness_mm;
+      const double t =
+          g.column_tag(u) == LeafletTag::kAnterior ? o.al_thickness_mm : o.pl_thickness_mm;
       bottom.row(i) = top.V.row(i) + t * nrm.row(i);
     }
   }
   const bool with_annulus = o.labels.annulus != 0;
-  const bool with_papillary =
-      o.labels.papillary != 0 && frame.observed(Landmark::kAnterolateralPapillaryTip) &&
-      frame.observed(Landmark::kPosteromedialPapillaryTip);
+  const bool with_papillary = o.labels.papillary != 0 &&
+                              frame.observed(Landmark::kAnterolateralPapillaryTip) &&
+                              frame.observed(Landmark::kPosteromedialPapillaryTip);
   const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
   Eigen::Vector3d papillary_centre[2];
   if (with_papillary) {
-    papillary_centre[0] = frame.landmark(Landmark::kAnterolateralPapillaryTip) - o.papillary_radius_mm * atrial;
-    papillary_centre[1] = frame.landmark(Landmark::kPosteromedialPapillaryTip) - o.papillary_radius_mm * atrial;
+    papillary_centre[0] =
+        frame.landmark(Landmark::kAnterolateralPapillaryTip) - o.papillary_radius_mm * atrial;
+    papillary_centre[1] =
+        frame.landmark(Landmark::kPosteromedialPapillaryTip) - o.papillary_radius_mm * atrial;
   }
 
   // Geometry: the given one, or an axis-aligned box (in the voxel axes) around everything drawn.
   ImageVolume im = o.geometry ? *o.geometry : label_map_geometry(frame, o);
   im.data.clear();
   const int S = o.supersample;
-  const std::array<long, 3> ns = {static_cast<long>(im.size[0]) * S, static_cast<long>(im.size[1]) * S,
+  const std::array<long, 3> ns = {static_cast<long>(im.size[0]) * S,
+                                  static_cast<long>(im.size[1]) * S,
                                   static_cast<long>(im.size[2]) * S};
   // Sub-sample m along an axis sits at index coordinate (m + 0.5) / S - 0.5.
   std::vector<std::uint8_t> sub(static_cast<std::size_t>(ns[0] * ns[1] * ns[2]), 0);
@@ -153,18 +161,21 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
     return sub[static_cast<std::size_t>(a + ns[0] * (b + ns[1] * c))];
   };
   const Eigen::Matrix3d to_index = (im.direction * im.spacing.asDiagonal()).inverse();
-  auto idx = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return to_index * (p - im.origin); };
+  auto idx = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return to_index * (p - im.origin);
+  };
 
   // Leaflets: every prism (a triangle of the top surface and its extrusion) as 3 tetrahedra,
   // split by global vertex order so that neighbouring prisms share their quad faces' diagonals.
   const Eigen::VectorXi tags = g.triangle_tags();
-  auto raster_tet = [&](const Eigen::Vector3d& A, const Eigen::Vector3d& B, const Eigen::Vector3d& C,
-                        const Eigen::Vector3d& D, std::uint8_t value) {
+  auto raster_tet = [&](const Eigen::Vector3d& A, const Eigen::Vector3d& B,
+                        const Eigen::Vector3d& C, const Eigen::Vector3d& D, std::uint8_t value) {
     Eigen::Matrix3d M;
     M << B - A, C - A, D - A;
     if (std::abs(M.determinant()) < 1e-12) return;
     const Eigen::Matrix3d Minv = M.inverse();
-    Eigen::Vector3d bl = A.cwiseMin(B).cwiseMin(C).cwiseMin(D), bh = A.cwiseMax(B).cwiseMax(C).cwiseMax(D);
+    Eigen::Vector3d bl = A.cwiseMin(B).cwiseMin(C).cwiseMin(D),
+                    bh = A.cwiseMax(B).cwiseMax(C).cwiseMax(D);
     long m0[3], m1[3];
     for (int k = 0; k < 3; ++k) {
       m0[k] = std::max(0L, static_cast<long>(std::ceil((bl[k] + 0.5) * S - 0.5)));
@@ -181,9 +192,11 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   for (Eigen::Index f = 0; f < top.F.rows(); ++f) {
     std::array<int, 3> v = {top.F(f, 0), top.F(f, 1), top.F(f, 2)};
     std::sort(v.begin(), v.end());
-    const Eigen::Vector3d a = idx(top.V.row(v[0]).transpose()), b = idx(top.V.row(v[1]).transpose()),
+    const Eigen::Vector3d a = idx(top.V.row(v[0]).transpose()),
+                          b = idx(top.V.row(v[1]).transpose()),
                           c = idx(top.V.row(v[2]).transpose());
-    const Eigen::Vector3d a2 = idx(bottom.row(v[0]).transpose()), b2 = idx(bottom.row(v[1]).transpose()),
+    const Eigen::Vector3d a2 = idx(bottom.row(v[0]).transpose()),
+                          b2 = idx(bottom.row(v[1]).transpose()),
                           c2 = idx(bottom.row(v[2]).transpose());
     const std::uint8_t value = tags[f] == static_cast<int>(LeafletTag::kAnterior) ? 1 : 2;
     raster_tet(a, b, c, c2, value);
@@ -198,15 +211,17 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   auto near_ring = [&](Eigen::Index from, const Eigen::Vector3d& p) {
     const Eigen::Index n = ring.rows();
     for (Eigen::Index j = from - 24; j <= from + 48; ++j)
-      if ((ring.row((j + n) % n).transpose() - p).squaredNorm() <= o.annulus_radius_mm * o.annulus_radius_mm)
+      if ((ring.row((j + n) % n).transpose() - p).squaredNorm() <=
+          o.annulus_radius_mm * o.annulus_radius_mm)
         return true;
     return false;
   };
-  auto paint_shape = [&](const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p, std::uint8_t value,
-                         auto&& inside) {
+  auto paint_shape = [&](const Eigen::Vector3d& lo_p, const Eigen::Vector3d& hi_p,
+                         std::uint8_t value, auto&& inside) {
     Eigen::Vector3d bl = Eigen::Vector3d::Constant(1e300), bh = -bl;
     for (int corner = 0; corner < 8; ++corner) {
-      const Eigen::Vector3d p((corner & 1) ? hi_p.x() : lo_p.x(), (corner & 2) ? hi_p.y() : lo_p.y(),
+      const Eigen::Vector3d p((corner & 1) ? hi_p.x() : lo_p.x(),
+                              (corner & 2) ? hi_p.y() : lo_p.y(),
                               (corner & 4) ? hi_p.z() : lo_p.z());
       const Eigen::Vector3d q = idx(p);
       bl = bl.cwiseMin(q);
@@ -222,7 +237,8 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
       for (long b = m0[1]; b <= m1[1]; ++b)
         for (long a = m0[0]; a <= m1[0]; ++a) {
           const Eigen::Vector3d p =
-              im.origin + axes * Eigen::Vector3d((a + 0.5) / S - 0.5, (b + 0.5) / S - 0.5, (c + 0.5) / S - 0.5);
+              im.origin +
+              axes * Eigen::Vector3d((a + 0.5) / S - 0.5, (b + 0.5) / S - 0.5, (c + 0.5) / S - 0.5);
           if (inside(p)) sub_at(a, b, c) = value;
         }
   };
@@ -249,7 +265,8 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
 
   // Partial-volume fractions, thresholded at 1/2 with noise on the boundary voxels.
   Rng rng(o.seed);
-  const int values[5] = {0, o.labels.anterior, o.labels.posterior, o.labels.annulus, o.labels.papillary};
+  const int values[5] = {0, o.labels.anterior, o.labels.posterior, o.labels.annulus,
+                         o.labels.papillary};
   im.data.assign(im.num_voxels(), 0.0f);
   const int S3 = S * S * S;
   for (int k = 0; k < im.size[2]; ++k)
@@ -258,8 +275,9 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
         int count[5] = {0, 0, 0, 0, 0};
         for (int c = 0; c < S; ++c)
           for (int b = 0; b < S; ++b)
-            for (int a = 0; a < S; ++a) ++count[sub_at(static_cast<long>(i) * S + a, static_cast<long>(j) * S + b,
-                                                        static_cast<long>(k) * S + c)];
+            for (int a = 0; a < S; ++a)
+              ++count[sub_at(static_cast<long>(i) * S + a, static_cast<long>(j) * S + b,
+                             static_cast<long>(k) * S + c)];
         if (count[0] == S3) continue;
         double f = 1.0 - static_cast<double>(count[0]) / S3;
         if (count[0] > 0 && o.boundary_noise > 0) f += rng.normal(0.0, o.boundary_noise);
@@ -268,7 +286,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
         for (int l = 2; l < 5; ++l)
           if (count[l] > count[best]) best = l;
         im.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(im.size[0]) *
-                                                   (j + static_cast<std::size_t>(im.size[1]) * k)] =
+                                                  (j + static_cast<std::size_t>(im.size[1]) * k)] =
             static_cast<float>(values[best]);
       }
   return im;

@@ -19,7 +19,8 @@ namespace {
 std::string squash(std::string_view s) {
   std::string out;
   for (char c : s)
-    if (std::isalnum(static_cast<unsigned char>(c))) out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (std::isalnum(static_cast<unsigned char>(c)))
+      out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return out;
 }
 
@@ -42,17 +43,21 @@ std::optional<Landmark> landmark_from_label(std::string_view label) {
   const std::string s = squash(label);
   if (s.empty()) return std::nullopt;
   auto has = [&](const char* w) { return s.find(w) != std::string::npos; };
-  const bool al = has("anterolateral") || has("anteriorlateral") || s.rfind("al", 0) == 0 || has("left") ||
-                  s == "alpm" || s == "apm";
-  const bool pm = has("posteromedial") || has("posteriormedial") || (s.rfind("pm", 0) == 0 && s != "pml") ||
-                  has("right") || s == "pmpm" || s == "ppm";
-  if (s == "alpm" || s == "apm" || (has("papillary") && al)) return Landmark::kAnterolateralPapillaryTip;
-  if (s == "pmpm" || s == "ppm" || (has("papillary") && pm)) return Landmark::kPosteromedialPapillaryTip;
+  const bool al = has("anterolateral") || has("anteriorlateral") || s.rfind("al", 0) == 0 ||
+                  has("left") || s == "alpm" || s == "apm";
+  const bool pm = has("posteromedial") || has("posteriormedial") ||
+                  (s.rfind("pm", 0) == 0 && s != "pml") || has("right") || s == "pmpm" ||
+                  s == "ppm";
+  if (s == "alpm" || s == "apm" || (has("papillary") && al))
+    return Landmark::kAnterolateralPapillaryTip;
+  if (s == "pmpm" || s == "ppm" || (has("papillary") && pm))
+    return Landmark::kPosteromedialPapillaryTip;
   if (has("trigone") && al) return Landmark::kAnterolateralTrigone;
   if (has("trigone") && pm) return Landmark::kPosteromedialTrigone;
   if (has("commissure") && al) return Landmark::kAnterolateralCommissure;
   if (has("commissure") && pm) return Landmark::kPosteromedialCommissure;
-  if ((has("posterior") && (has("annulus") || has("midpoint"))) || s == "pannulus") return Landmark::kPosteriorAnnulusMidpoint;
+  if ((has("posterior") && (has("annulus") || has("midpoint"))) || s == "pannulus")
+    return Landmark::kPosteriorAnnulusMidpoint;
   if (has("anterior") && has("tip")) return Landmark::kAnteriorLeafletTip;
   if (has("posterior") && has("tip")) return Landmark::kPosteriorLeafletTip;
   for (int l = 0; l < kNumLandmarks; ++l)
@@ -61,7 +66,8 @@ std::optional<Landmark> landmark_from_label(std::string_view label) {
 }
 
 std::vector<LandmarkInput> landmarks_from_markups(const MarkupList& m, const std::string& source,
-                                                  std::optional<double> time_s, const std::vector<Landmark>& order) {
+                                                  std::optional<double> time_s,
+                                                  const std::vector<Landmark>& order) {
   std::vector<LandmarkInput> out;
   std::vector<std::optional<Landmark>> by_label;
   bool all = true;
@@ -71,11 +77,13 @@ std::vector<LandmarkInput> landmarks_from_markups(const MarkupList& m, const std
   }
   if (!order.empty()) {
     if (order.size() != m.points.size())
-      throw Error(source + ": " + std::to_string(m.points.size()) + " points but " + std::to_string(order.size()) +
-                  " names in the given order");
-    for (size_t i = 0; i < order.size(); ++i) out.push_back({order[i], m.points[i].position, time_s, source});
+      throw Error(source + ": " + std::to_string(m.points.size()) + " points but " +
+                  std::to_string(order.size()) + " names in the given order");
+    for (size_t i = 0; i < order.size(); ++i)
+      out.push_back({order[i], m.points[i].position, time_s, source});
   } else if (all) {
-    for (size_t i = 0; i < by_label.size(); ++i) out.push_back({*by_label[i], m.points[i].position, time_s, source});
+    for (size_t i = 0; i < by_label.size(); ++i)
+      out.push_back({*by_label[i], m.points[i].position, time_s, source});
   } else if (m.points.size() == 2) {
     out.push_back({Landmark::kAnterolateralPapillaryTip, m.points[0].position, time_s, source});
     out.push_back({Landmark::kPosteromedialPapillaryTip, m.points[1].position, time_s, source});
@@ -84,7 +92,8 @@ std::vector<LandmarkInput> landmarks_from_markups(const MarkupList& m, const std
     for (size_t i = 0; i < by_label.size(); ++i)
       if (!by_label[i]) bad += (bad.empty() ? "'" : ", '") + m.points[i].label + "'";
     throw Error(source + ": the markup labels " + bad +
-                " name no landmark (use the names in docs/import.md, or give the order with --markup-order)");
+                " name no landmark (use the names in docs/import.md, or give the order with "
+                "--markup-order)");
   }
   for (size_t i = 0; i < out.size(); ++i)
     for (size_t j = i + 1; j < out.size(); ++j)
@@ -110,17 +119,21 @@ bool PatientImportOptions::is_valid(std::string* error) const {
   return true;
 }
 
-PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<LandmarkInput>& landmarks,
+PatientImport import_patient(std::vector<LabelFrame> frames,
+                             const std::vector<LandmarkInput>& landmarks,
                              const PatientImportOptions& opt) {
   std::string err;
   if (!opt.is_valid(&err)) throw Error("import: " + err);
   if (frames.empty()) throw Error("import: no frames given");
-  std::stable_sort(frames.begin(), frames.end(), [](const LabelFrame& a, const LabelFrame& b) { return a.time_s < b.time_s; });
+  std::stable_sort(frames.begin(), frames.end(),
+                   [](const LabelFrame& a, const LabelFrame& b) { return a.time_s < b.time_s; });
   for (size_t i = 0; i < frames.size(); ++i) {
-    if (!std::isfinite(frames[i].time_s)) throw Error(frames[i].source + ": the frame time is not a number");
+    if (!std::isfinite(frames[i].time_s))
+      throw Error(frames[i].source + ": the frame time is not a number");
     if (i > 0 && frames[i].time_s - frames[i - 1].time_s < 1e-6)
-      throw Error("import: " + frames[i - 1].source + " and " + frames[i].source + " have the same time (" +
-                  fmt(frames[i].time_s, 3) + " s); give each frame its own time (FILE@TIME)");
+      throw Error("import: " + frames[i - 1].source + " and " + frames[i].source +
+                  " have the same time (" + fmt(frames[i].time_s, 3) +
+                  " s); give each frame its own time (FILE@TIME)");
   }
   const int F = static_cast<int>(frames.size());
   PatientImport out;
@@ -141,15 +154,18 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
     const double cos_n = atrial_direction(b.annulus).dot(n0);
     if (cos_n < 0.7 || jump > opt.max_commissure_jump_mm) {
       throw Error("import: the grids of " + frames[f - 1].source + " and " + frames[f].source +
-                  " disagree (anterolateral commissure moves " + fmt(jump, 1) + " mm, atrial directions " +
+                  " disagree (anterolateral commissure moves " + fmt(jump, 1) +
+                  " mm, atrial directions " +
                   fmt(std::acos(std::clamp(cos_n, -1.0, 1.0)) * 180 / 3.14159265358979, 0) +
-                  " degrees apart): are they the same patient, in the same image space, with the same labels?");
+                  " degrees apart): are they the same patient, in the same image space, with the "
+                  "same labels?");
     }
   }
   // End-diastole and the first closed frame.
   int ed = opt.end_diastole, fc = opt.first_closed;
   if ((ed >= F) || (fc >= F))
-    throw Error("import: frame index out of range (" + std::to_string(F) + " frames, counted from 0 in time order)");
+    throw Error("import: frame index out of range (" + std::to_string(F) +
+                " frames, counted from 0 in time order)");
   std::string orifices;
   for (int f = 0; f < F; ++f) orifices += (f ? ", " : "") + fmt(out.fits[f].orifice_area_mm2, 0);
   if (F == 1) {
@@ -159,7 +175,9 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
       fc = 0;
       ed = -1;
     }
-    out.notes.push_back("one frame: it can be measured, but simulate, calibrate and clip need an end-diastolic and a first closed frame");
+    out.notes.push_back(
+        "one frame: it can be measured, but simulate, calibrate and clip need an end-diastolic and "
+        "a first closed frame");
   } else {
     if (fc < 0) {
       int lo = ed >= 0 ? ed + 1 : 1;
@@ -173,14 +191,16 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
         if (out.fits[f].orifice_area_mm2 > out.fits[ed].orifice_area_mm2) ed = f;
     }
     if (fc <= ed) throw Error("import: the first closed frame must come after end-diastole");
-    out.notes.push_back("end-diastole: frame " + std::to_string(ed) + " (" + fmt(frames[ed].time_s, 3) + " s)" +
-                        (opt.end_diastole >= 0 ? " as given" : ", the largest orifice before the closed frame") +
-                        "; first closed: frame " + std::to_string(fc) + " (" + fmt(frames[fc].time_s, 3) + " s)" +
-                        (opt.first_closed >= 0 ? " as given" : ", the smallest orifice") + "; orifice areas mm^2: " +
-                        orifices);
+    out.notes.push_back(
+        "end-diastole: frame " + std::to_string(ed) + " (" + fmt(frames[ed].time_s, 3) + " s)" +
+        (opt.end_diastole >= 0 ? " as given" : ", the largest orifice before the closed frame") +
+        "; first closed: frame " + std::to_string(fc) + " (" + fmt(frames[fc].time_s, 3) + " s)" +
+        (opt.first_closed >= 0 ? " as given" : ", the smallest orifice") +
+        "; orifice areas mm^2: " + orifices);
     if (out.fits[fc].orifice_area_mm2 > 0.5 * out.fits[ed].orifice_area_mm2) {
-      out.notes.push_back("warning: the first closed frame's orifice (" + fmt(out.fits[fc].orifice_area_mm2, 0) +
-                          " mm^2) is more than half the end-diastolic one: is the valve closed in any frame?");
+      out.notes.push_back(
+          "warning: the first closed frame's orifice (" + fmt(out.fits[fc].orifice_area_mm2, 0) +
+          " mm^2) is more than half the end-diastolic one: is the valve closed in any frame?");
     }
   }
 
@@ -201,13 +221,15 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
 
   // Landmarks from markups: a time picks the frame; no time means every frame.
   for (const LandmarkInput& in : landmarks) {
-    if (!in.position.allFinite()) throw Error(in.source + ": " + std::string(name(in.landmark)) + " has a NaN/Inf coordinate");
+    if (!in.position.allFinite())
+      throw Error(in.source + ": " + std::string(name(in.landmark)) + " has a NaN/Inf coordinate");
     std::vector<int> targets;
     if (in.time_s) {
       for (int f = 0; f < F; ++f)
         if (std::abs(seq.frames[f].time_s - *in.time_s) < 5e-4) targets.push_back(f);
       if (targets.empty())
-        throw Error(in.source + ": no frame at " + fmt(*in.time_s, 3) + " s for " + std::string(name(in.landmark)));
+        throw Error(in.source + ": no frame at " + fmt(*in.time_s, 3) + " s for " +
+                    std::string(name(in.landmark)));
     } else {
       for (int f = 0; f < F; ++f) targets.push_back(f);
     }
@@ -217,7 +239,8 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
       const double dist = (in.position - c).norm();
       if (dist > 80.0) {
         throw Error(in.source + ": " + std::string(name(in.landmark)) + " lies " + fmt(dist, 0) +
-                    " mm from the valve's centre: are the markups in another coordinate space (image IJK, or LPS "
+                    " mm from the valve's centre: are the markups in another coordinate space "
+                    "(image IJK, or LPS "
                     "without saying so)?");
       }
       seq.frames[f].landmarks[index(in.landmark)] = in.position;
@@ -243,8 +266,9 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
         seq.frames[f].landmarks[index(l)] = seq.frames[best].landmark(l);
         seq.frames[f].landmark_observed[index(l)] = true;
         seq.frames[f].landmark_assumed[index(l)] = true;
-        out.assumed.push_back(std::string(name(l)) + " in frame " + std::to_string(f) + ": held at frame " +
-                              std::to_string(best) + "'s position (no papillary motion known there)");
+        out.assumed.push_back(std::string(name(l)) + " in frame " + std::to_string(f) +
+                              ": held at frame " + std::to_string(best) +
+                              "'s position (no papillary motion known there)");
       }
       continue;
     }
@@ -258,15 +282,16 @@ PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<L
       const Eigen::Vector3d ant = fr.annulus.row(seq.ures / 4).transpose() - c;
       if (x.dot(ant) < 0) x = -x;  // towards the anterior annulus
       const double side = l == Landmark::kAnterolateralPapillaryTip ? 1.0 : -1.0;
-      fr.landmarks[index(l)] =
-          c - kPapillaryPosteriorMm * x + side * 0.5 * kPapillarySeparationMm * y - kPapillaryDepthMm * z;
+      fr.landmarks[index(l)] = c - kPapillaryPosteriorMm * x +
+                               side * 0.5 * kPapillarySeparationMm * y - kPapillaryDepthMm * z;
       fr.landmark_observed[index(l)] = true;
       fr.landmark_assumed[index(l)] = true;
     }
-    out.assumed.push_back(std::string(name(l)) + ": ASSUMED in every frame, " + fmt(kPapillaryDepthMm, 1) +
-                          " mm below the annulus plane, " + fmt(kPapillarySeparationMm / 2, 0) +
-                          " mm to its side of the commissural line's centre, " + fmt(kPapillaryPosteriorMm, 0) +
-                          " mm posterior (published anatomy; no papillary label or markup given)");
+    out.assumed.push_back(
+        std::string(name(l)) + ": ASSUMED in every frame, " + fmt(kPapillaryDepthMm, 1) +
+        " mm below the annulus plane, " + fmt(kPapillarySeparationMm / 2, 0) +
+        " mm to its side of the commissural line's centre, " + fmt(kPapillaryPosteriorMm, 0) +
+        " mm posterior (published anatomy; no papillary label or markup given)");
   }
   if (!out.assumed.empty()) p.provenance.source += "; ASSUMED: " + seq.assumed_landmarks();
   seq.validate(p.id.c_str());

@@ -38,7 +38,10 @@ struct PlaneFrame {
     const Eigen::Vector2d q = to2d(p);
     return std::atan2(q.y(), q.x());
   }
-  void complete() { e2 = n.cross(e1).normalized(); e1 = e2.cross(n); }
+  void complete() {
+    e2 = n.cross(e1).normalized();
+    e1 = e2.cross(n);
+  }
 };
 
 int dense_bin(double angle) {
@@ -46,7 +49,8 @@ int dense_bin(double angle) {
 }
 
 /// Least-squares Fourier series of order `order` through (angle, value), at kDense angles.
-Eigen::VectorXd fourier_fit(const std::vector<double>& angle, const std::vector<double>& value, int order) {
+Eigen::VectorXd fourier_fit(const std::vector<double>& angle, const std::vector<double>& value,
+                            int order) {
   const int m = 2 * order + 1;
   auto row = [&](double a, auto&& r) {
     r(0) = 1.0;
@@ -73,7 +77,8 @@ Eigen::VectorXd fourier_fit(const std::vector<double>& angle, const std::vector<
 
 /// A smooth closed curve (kDense points, point i at angle -pi + 2 pi i / kDense) through points
 /// given with their angles.
-Points closed_curve(const std::vector<double>& angle, const std::vector<Eigen::Vector3d>& p, int order) {
+Points closed_curve(const std::vector<double>& angle, const std::vector<Eigen::Vector3d>& p,
+                    int order) {
   std::vector<double> x(p.size()), y(p.size()), z(p.size());
   for (size_t i = 0; i < p.size(); ++i) {
     x[i] = p[i].x();
@@ -136,7 +141,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   out.source = source;
   const SegmentationLabels& L = opt.labels;
   const std::size_t nx = im.size[0], ny = im.size[1], nz = im.size[2];
-  auto lin = [&](long i, long j, long k) { return static_cast<std::size_t>(i) + nx * (j + ny * static_cast<std::size_t>(k)); };
+  auto lin = [&](long i, long j, long k) {
+    return static_cast<std::size_t>(i) + nx * (j + ny * static_cast<std::size_t>(k));
+  };
 
   // ---- 1. codes per voxel ---------------------------------------------------------------------
   std::vector<std::uint8_t> code(im.num_voxels(), kNone);
@@ -147,23 +154,30 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     const long l = std::lround(x);
     if (l == 0) continue;
     ++histogram[l];
-    if (l == L.anterior) code[v] = kAnt;
-    else if (l == L.posterior) code[v] = kPost;
-    else if (L.annulus && l == L.annulus) code[v] = kRing;
-    else if (L.papillary && l == L.papillary) code[v] = kPap;
+    if (l == L.anterior)
+      code[v] = kAnt;
+    else if (l == L.posterior)
+      code[v] = kPost;
+    else if (L.annulus && l == L.annulus)
+      code[v] = kRing;
+    else if (L.papillary && l == L.papillary)
+      code[v] = kPap;
   }
   std::string found;
-  for (const auto& [l, n] : histogram) found += (found.empty() ? "" : ", ") + std::to_string(l) + ": " + std::to_string(n);
+  for (const auto& [l, n] : histogram)
+    found += (found.empty() ? "" : ", ") + std::to_string(l) + ": " + std::to_string(n);
   if (found.empty()) found = "none";
   auto count_of = [&](int l) { return histogram.count(l) ? histogram[l] : 0L; };
   auto need = [&](int label, const char* what) {
     if (count_of(label) < 50) {
       throw Error(source + ": label " + std::to_string(label) + " (" + what + ") has " +
-                  std::to_string(count_of(label)) + " voxels, too few to fit (labels found with voxel counts: " +
-                  found + "); check the label convention (--convention) or the values (--labels)");
+                  std::to_string(count_of(label)) +
+                  " voxels, too few to fit (labels found with voxel counts: " + found +
+                  "); check the label convention (--convention) or the values (--labels)");
     }
   };
-  if (histogram.empty()) throw Error(source + ": no valve found: the label map is empty (every voxel is 0)");
+  if (histogram.empty())
+    throw Error(source + ": no valve found: the label map is empty (every voxel is 0)");
   need(L.anterior, "anterior leaflet");
   need(L.posterior, "posterior leaflet");
 
@@ -182,13 +196,14 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
         const std::size_t w = stack.back();
         stack.pop_back();
         ++n;
-        const long i = static_cast<long>(w % nx), j = static_cast<long>((w / nx) % ny), k = static_cast<long>(w / (nx * ny));
+        const long i = static_cast<long>(w % nx), j = static_cast<long>((w / nx) % ny),
+                   k = static_cast<long>(w / (nx * ny));
         for (long dk = -1; dk <= 1; ++dk)
           for (long dj = -1; dj <= 1; ++dj)
             for (long di = -1; di <= 1; ++di) {
               const long a = i + di, b = j + dj, e = k + dk;
-              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) || b >= static_cast<long>(ny) ||
-                  e >= static_cast<long>(nz))
+              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) ||
+                  b >= static_cast<long>(ny) || e >= static_cast<long>(nz))
                 continue;
               const std::size_t q = lin(a, b, e);
               if (code[q] == c && comp[q] < 0) {
@@ -207,9 +222,11 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     for (size_t s = 0; s < sizes.size(); ++s) {
       if (static_cast<int>(s) == big) continue;
       if (sizes[s] >= opt.max_secondary_component * sizes[big] && sizes[s] >= 50) {
-        throw Error(source + ": label " + std::to_string(value) + " (" + what + ") has several disconnected components (" +
-                    std::to_string(sizes[big]) + " and " + std::to_string(sizes[s]) +
-                    " voxels, ...); a leaflet must be one piece (clean the segmentation, or check the label values)");
+        throw Error(source + ": label " + std::to_string(value) + " (" + what +
+                    ") has several disconnected components (" + std::to_string(sizes[big]) +
+                    " and " + std::to_string(sizes[s]) +
+                    " voxels, ...); a leaflet must be one piece (clean the segmentation, or check "
+                    "the label values)");
       }
       dropped += sizes[s];
       ++dropped_n;
@@ -217,8 +234,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     if (dropped_n > 0) {
       for (std::size_t v = 0; v < im.num_voxels(); ++v)
         if (code[v] == c && comp[v] != big) code[v] = kNone;
-      out.notes.push_back(std::string(what) + ": dropped " + std::to_string(dropped_n) + " small detached piece(s), " +
-                          std::to_string(dropped) + " voxels");
+      out.notes.push_back(std::string(what) + ": dropped " + std::to_string(dropped_n) +
+                          " small detached piece(s), " + std::to_string(dropped) + " voxels");
     }
   }
 
@@ -229,12 +246,14 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       for (std::size_t i = 0; i < nx; ++i) {
         const std::uint8_t c = code[lin(i, j, k)];
         if (c == kNone) continue;
-        Voxel v{static_cast<int>(i), static_cast<int>(j), static_cast<int>(k), im.position(i, j, k), c};
+        Voxel v{static_cast<int>(i), static_cast<int>(j), static_cast<int>(k), im.position(i, j, k),
+                c};
         if (c == kAnt || c == kPost) {
           if (i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz) {
-            throw Error(source + ": the leaflets touch the image border at voxel (" + std::to_string(i) + ", " +
-                        std::to_string(j) + ", " + std::to_string(k) +
-                        "): the valve is cut off by the field of view, so its shape cannot be fitted");
+            throw Error(
+                source + ": the leaflets touch the image border at voxel (" + std::to_string(i) +
+                ", " + std::to_string(j) + ", " + std::to_string(k) +
+                "): the valve is cut off by the field of view, so its shape cannot be fitted");
           }
           leaf.push_back(v);
         } else if (c == kRing) {
@@ -247,15 +266,17 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   out.annulus_voxels = static_cast<int>(ring.size());
   out.papillary_voxels = static_cast<int>(pap.size());
   if (out.anterior_voxels < out.posterior_voxels) {
-    out.warnings.push_back("the anterior leaflet label (" + std::to_string(L.anterior) + ", " +
-                           std::to_string(out.anterior_voxels) + " voxels) is smaller than the posterior one (" +
-                           std::to_string(L.posterior) + ", " + std::to_string(out.posterior_voxels) +
-                           "); the anterior leaflet is normally the larger: are the labels swapped?");
+    out.warnings.push_back(
+        "the anterior leaflet label (" + std::to_string(L.anterior) + ", " +
+        std::to_string(out.anterior_voxels) + " voxels) is smaller than the posterior one (" +
+        std::to_string(L.posterior) + ", " + std::to_string(out.posterior_voxels) +
+        "); the anterior leaflet is normally the larger: are the labels swapped?");
   }
   const double voxel = im.spacing.maxCoeff();
   const bool use_ring = L.annulus != 0 && opt.use_annulus_label && ring.size() >= 50;
   if (L.annulus != 0 && ring.size() < 50) {
-    out.notes.push_back("annulus label " + std::to_string(L.annulus) + " has " + std::to_string(ring.size()) +
+    out.notes.push_back("annulus label " + std::to_string(L.annulus) + " has " +
+                        std::to_string(ring.size()) +
                         " voxels: the annulus is taken from the leaflet rim");
   }
 
@@ -283,26 +304,30 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
         all += rh[i].second;
         if (i >= from) outer += rh[i].second;
       }
-      if (outer / static_cast<double>(rh.size() - from) < all / static_cast<double>(rh.size())) fr->n = -fr->n;
+      if (outer / static_cast<double>(rh.size() - from) < all / static_cast<double>(rh.size()))
+        fr->n = -fr->n;
     }
     fr->complete();
   };
 
   // The rim of the leaflets: per angular sector, the voxels furthest out and up (score r + 2h;
   // the attachment is the outermost point of the atrial surface, open or closed).
-  auto rim_points = [&](const PlaneFrame& fr, std::vector<double>* angle, std::vector<Eigen::Vector3d>* pts) {
+  auto rim_points = [&](const PlaneFrame& fr, std::vector<double>* angle,
+                        std::vector<Eigen::Vector3d>* pts) {
     constexpr int kBins = 72;
     std::vector<std::vector<std::pair<double, Eigen::Vector3d>>> bins(kBins);
     for (const auto& p : leaf_p) {
       const Eigen::Vector2d q = fr.to2d(p);
-      const int b = std::clamp(static_cast<int>((std::atan2(q.y(), q.x()) + pi) / (2 * pi) * kBins), 0, kBins - 1);
+      const int b = std::clamp(static_cast<int>((std::atan2(q.y(), q.x()) + pi) / (2 * pi) * kBins),
+                               0, kBins - 1);
       bins[b].emplace_back(q.norm() + 2.0 * fr.height(p), p);
     }
     angle->clear();
     pts->clear();
     for (auto& b : bins) {
       if (b.size() < 3) continue;
-      std::partial_sort(b.begin(), b.begin() + 3, b.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+      std::partial_sort(b.begin(), b.begin() + 3, b.end(),
+                        [](const auto& x, const auto& y) { return x.first > y.first; });
       // Voxel centres sit half a voxel inside the boundary: move out along the score direction.
       Eigen::Vector3d m = (b[0].second + b[1].second + b[2].second) / 3.0;
       const Eigen::Vector2d q = fr.to2d(m);
@@ -324,7 +349,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     std::vector<Eigen::Vector3d> sum(kBins, Eigen::Vector3d::Zero());
     std::vector<int> cnt(kBins, 0);
     for (const auto& p : rp) {
-      const int b = std::clamp(static_cast<int>((fr.angle(p) + pi) / (2 * pi) * kBins), 0, kBins - 1);
+      const int b =
+          std::clamp(static_cast<int>((fr.angle(p) + pi) / (2 * pi) * kBins), 0, kBins - 1);
       sum[b] += p;
       ++cnt[b];
     }
@@ -336,20 +362,26 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       ang.push_back(fr.angle(pts.back()));
     }
     if (ang.size() < kBins / 2) {
-      throw Error(source + ": the annulus label covers only " + std::to_string(ang.size()) + " of " +
-                  std::to_string(kBins) + " angular sectors; it must be a closed ring (or leave it out: --labels without an annulus value)");
+      throw Error(source + ": the annulus label covers only " + std::to_string(ang.size()) +
+                  " of " + std::to_string(kBins) +
+                  " angular sectors; it must be a closed ring (or leave it out: --labels without "
+                  "an annulus value)");
     }
     dense_ring = closed_curve(ang, pts, 6);
     out.annulus_source = "annulus label";
-    out.notes.push_back(opt.atrial_direction ? "atrial side: given"
-                                             : "atrial side: the leaflets lie on the ventricular side of the annulus label");
+    out.notes.push_back(
+        opt.atrial_direction
+            ? "atrial side: given"
+            : "atrial side: the leaflets lie on the ventricular side of the annulus label");
   }
   {
     // The rim: iterate plane and rim points from a start frame.
-    auto converge = [&](PlaneFrame rf, std::vector<double>* ang, std::vector<Eigen::Vector3d>* pts) {
+    auto converge = [&](PlaneFrame rf, std::vector<double>* ang,
+                        std::vector<Eigen::Vector3d>* pts) {
       for (int it = 0; it < 4; ++it) {
         rim_points(rf, ang, pts);
-        if (pts->size() < 36) throw Error(source + ": no leaflet rim found (the leaflets do not surround an orifice)");
+        if (pts->size() < 36)
+          throw Error(source + ": no leaflet rim found (the leaflets do not surround an orifice)");
         PlaneFrame next = pca_frame(*pts);
         if (next.n.dot(rf.n) < 0) next.n = -next.n;
         next.complete();
@@ -364,7 +396,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     std::vector<Eigen::Vector3d> pts;
     if (use_ring) {
       rim_points(fr, &ang, &pts);
-      if (pts.size() < 36) throw Error(source + ": no leaflet rim found (the leaflets do not surround an orifice)");
+      if (pts.size() < 36)
+        throw Error(source + ": no leaflet rim found (the leaflets do not surround an orifice)");
     } else {
       // Without an annulus label the atrial side is the one whose rim is widest: the
       // attachment is the widest part of the leaflets, open (a funnel) or closed (a tent that
@@ -388,8 +421,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       }
       fr = f1;
       out.annulus_source = "leaflet rim";
-      out.notes.push_back(opt.atrial_direction ? "atrial side: given"
-                                               : "atrial side: the side on which the leaflets' rim is widest");
+      out.notes.push_back(opt.atrial_direction
+                              ? "atrial side: given"
+                              : "atrial side: the side on which the leaflets' rim is widest");
     }
     for (size_t i = 0; i < pts.size(); ++i) ang[i] = fr.angle(pts[i]);
     dense_rim = closed_curve(ang, pts, 6);
@@ -404,7 +438,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     for (const Voxel& v : leaf) {
       const int d = dense_bin(fr.angle(v.p));
       double best = 1e30;
-      for (int o = -8; o <= 8; ++o) best = std::min(best, (dense.row((d + o + kDense) % kDense).transpose() - v.p).norm());
+      for (int o = -8; o <= 8; ++o)
+        best = std::min(best, (dense.row((d + o + kDense) % kDense).transpose() - v.p).norm());
       if (best > kReach) continue;
       (v.code == kAnt ? nal : npl)[d] += 1.0;
     }
@@ -429,12 +464,15 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     }
   }
   if (best_start < 0 || best_len >= kDense) {
-    throw Error(source + ": cannot find the commissures (the anterior and posterior leaflets do not both reach the annulus)");
+    throw Error(source +
+                ": cannot find the commissures (the anterior and posterior leaflets do not both "
+                "reach the annulus)");
   }
   // n points into the atrium, so increasing angle is counter-clockwise seen from the atrium; u
   // runs clockwise, entering the anterior arc at its high-angle end.
   const int i_al = (best_start + best_len) % kDense, i_pm = best_start;
-  out.notes.push_back("anterior annulus arc: " + std::to_string(static_cast<int>(std::lround(360.0 * best_len / kDense))) +
+  out.notes.push_back("anterior annulus arc: " +
+                      std::to_string(static_cast<int>(std::lround(360.0 * best_len / kDense))) +
                       " degrees");
   const int ures = opt.ures, vres = opt.vres;
   auto sample_annulus = [&](const Points& curve, std::vector<int>* dense_index) {
@@ -443,10 +481,13 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     auto arc = [&](int from, int count_dense, int u0, int count) {
       std::vector<double> len(count_dense + 1, 0.0);
       for (int s = 1; s <= count_dense; ++s)
-        len[s] = len[s - 1] + (curve.row((from - s + 2 * kDense) % kDense) - curve.row((from - s + 1 + 2 * kDense) % kDense)).norm();
+        len[s] = len[s - 1] + (curve.row((from - s + 2 * kDense) % kDense) -
+                               curve.row((from - s + 1 + 2 * kDense) % kDense))
+                                  .norm();
       for (int k = 0; k < count; ++k) {
         const double target = len[count_dense] * k / count;
-        const int s = static_cast<int>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
+        const int s =
+            static_cast<int>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
         const int s1 = std::max(s, 1);
         const double f = (target - len[s1 - 1]) / std::max(len[s1] - len[s1 - 1], 1e-12);
         const Eigen::Vector3d pa = curve.row((from - (s1 - 1) + 2 * kDense) % kDense).transpose();
@@ -473,7 +514,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     std::vector<double> dv;
     for (int u = 0; u < ures; ++u) {
       double best = 1e30;
-      for (const Voxel& v : ring) best = std::min(best, (v.p - out.rim_annulus.row(u).transpose()).squaredNorm());
+      for (const Voxel& v : ring)
+        best = std::min(best, (v.p - out.rim_annulus.row(u).transpose()).squaredNorm());
       dv.push_back(std::sqrt(best));
     }
     out.rim_to_label_voxels = distance_stats(dv);
@@ -486,7 +528,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   auto code_at = [&](const Eigen::Vector3d& p) -> std::uint8_t {
     const Eigen::Vector3d q = to_index * (p - im.origin);
     const long i = std::lround(q.x()), j = std::lround(q.y()), k = std::lround(q.z());
-    if (i < 0 || j < 0 || k < 0 || i >= static_cast<long>(nx) || j >= static_cast<long>(ny) || k >= static_cast<long>(nz))
+    if (i < 0 || j < 0 || k < 0 || i >= static_cast<long>(nx) || j >= static_cast<long>(ny) ||
+        k >= static_cast<long>(nz))
       return kNone;
     return code[lin(i, j, k)];
   };
@@ -496,7 +539,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   // Returns the column's vres points, or nothing when the leaflet cannot be followed.
   auto trace = [&](int u, bool any_leaflet) -> std::optional<std::vector<Eigen::Vector3d>> {
     const Eigen::Vector3d a = annulus.row(u).transpose();
-    Eigen::Vector3d d = (annulus.row((u + 1) % ures) - annulus.row((u + ures - 1) % ures)).transpose().cross(fr.n);
+    Eigen::Vector3d d =
+        (annulus.row((u + 1) % ures) - annulus.row((u + ures - 1) % ures)).transpose().cross(fr.n);
     d -= d.dot(fr.n) * fr.n;
     d.normalize();
     const std::uint8_t own = u < ures / 2 ? kAnt : kPost;
@@ -580,16 +624,20 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       sm[i] = sum / n;
     }
     std::vector<Eigen::Vector3d> curve = {a};
-    for (size_t i = 0; i < rs.size(); ++i) curve.push_back(a + rs[i] * (std::cos(sm[i]) * d + std::sin(sm[i]) * fr.n));
+    for (size_t i = 0; i < rs.size(); ++i)
+      curve.push_back(a + rs[i] * (std::cos(sm[i]) * d + std::sin(sm[i]) * fr.n));
     std::vector<double> len(curve.size(), 0.0);
-    for (size_t i = 1; i < curve.size(); ++i) len[i] = len[i - 1] + (curve[i] - curve[i - 1]).norm();
+    for (size_t i = 1; i < curve.size(); ++i)
+      len[i] = len[i - 1] + (curve[i] - curve[i - 1]).norm();
     std::vector<Eigen::Vector3d> column(static_cast<size_t>(vres));
     for (int v = 0; v < vres; ++v) {
       const double target = len.back() * v / (vres - 1);
-      size_t i = static_cast<size_t>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
+      size_t i =
+          static_cast<size_t>(std::lower_bound(len.begin(), len.end(), target) - len.begin());
       i = std::clamp<size_t>(i, 1, len.size() - 1);
       const double f = (target - len[i - 1]) / std::max(len[i] - len[i - 1], 1e-12);
-      column[static_cast<size_t>(v)] = curve[i - 1] + std::clamp(f, 0.0, 1.0) * (curve[i] - curve[i - 1]);
+      column[static_cast<size_t>(v)] =
+          curve[i - 1] + std::clamp(f, 0.0, 1.0) * (curve[i] - curve[i - 1]);
     }
     return column;
   };
@@ -610,31 +658,45 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     return s;
   };
   if (!relaxed.empty()) {
-    out.notes.push_back("grid columns u = " + list(relaxed) +
-                        ": the column's own leaflet could not be followed, the other leaflet's label was accepted");
+    out.notes.push_back(
+        "grid columns u = " + list(relaxed) +
+        ": the column's own leaflet could not be followed, the other leaflet's label was accepted");
   }
   if (static_cast<int>(missing.size()) * 5 > ures) {
-    throw Error(source + ": the leaflets cannot be followed from the annulus at grid columns u = " + list(missing) +
+    throw Error(source + ": the leaflets cannot be followed from the annulus at grid columns u = " +
+                list(missing) +
                 " (no leaflet within 10 mm of the annulus there, or a gap in the segmentation)");
   }
   if (!missing.empty()) {
     out.warnings.push_back("grid columns u = " + list(missing) +
-                           ": no leaflet could be followed from the annulus; interpolated from the neighbouring columns");
+                           ": no leaflet could be followed from the annulus; interpolated from the "
+                           "neighbouring columns");
   }
   LeafletGrid::Points P(static_cast<Eigen::Index>(ures) * vres, 3);
   for (int u = 0; u < ures; ++u) {
     if (columns[static_cast<size_t>(u)]) {
-      for (int v = 0; v < vres; ++v) P.row(static_cast<Eigen::Index>(v) * ures + u) = (*columns[static_cast<size_t>(u)])[static_cast<size_t>(v)].transpose();
+      for (int v = 0; v < vres; ++v)
+        P.row(static_cast<Eigen::Index>(v) * ures + u) =
+            (*columns[static_cast<size_t>(u)])[static_cast<size_t>(v)].transpose();
       continue;
     }
     int l = u, r = u, dl = 0, dr2 = 0;
-    while (!columns[static_cast<size_t>(l)]) { l = (l + ures - 1) % ures; ++dl; }
-    while (!columns[static_cast<size_t>(r)]) { r = (r + 1) % ures; ++dr2; }
+    while (!columns[static_cast<size_t>(l)]) {
+      l = (l + ures - 1) % ures;
+      ++dl;
+    }
+    while (!columns[static_cast<size_t>(r)]) {
+      r = (r + 1) % ures;
+      ++dr2;
+    }
     const double w = static_cast<double>(dl) / (dl + dr2);
     for (int v = 0; v < vres; ++v) {
-      const Eigen::Vector3d pl = (*columns[static_cast<size_t>(l)])[static_cast<size_t>(v)] - annulus.row(l).transpose();
-      const Eigen::Vector3d pr = (*columns[static_cast<size_t>(r)])[static_cast<size_t>(v)] - annulus.row(r).transpose();
-      P.row(static_cast<Eigen::Index>(v) * ures + u) = (annulus.row(u).transpose() + (1 - w) * pl + w * pr).transpose();
+      const Eigen::Vector3d pl =
+          (*columns[static_cast<size_t>(l)])[static_cast<size_t>(v)] - annulus.row(l).transpose();
+      const Eigen::Vector3d pr =
+          (*columns[static_cast<size_t>(r)])[static_cast<size_t>(v)] - annulus.row(r).transpose();
+      P.row(static_cast<Eigen::Index>(v) * ures + u) =
+          (annulus.row(u).transpose() + (1 - w) * pl + w * pr).transpose();
     }
   }
   LeafletGrid grid(ures, vres, std::move(P));
@@ -663,7 +725,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   if (L.papillary != 0 && !pap.empty()) {
     std::vector<int> comp(pap.size(), -1);
     std::map<std::size_t, int> where;
-    for (size_t i = 0; i < pap.size(); ++i) where[lin(pap[i].i, pap[i].j, pap[i].k)] = static_cast<int>(i);
+    for (size_t i = 0; i < pap.size(); ++i)
+      where[lin(pap[i].i, pap[i].j, pap[i].k)] = static_cast<int>(i);
     std::vector<std::vector<int>> pieces;
     for (size_t s = 0; s < pap.size(); ++s) {
       if (comp[s] >= 0) continue;
@@ -678,7 +741,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
           for (int dj = -1; dj <= 1; ++dj)
             for (int di = -1; di <= 1; ++di) {
               const long a = pap[w].i + di, b = pap[w].j + dj, e = pap[w].k + dk;
-              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) || b >= static_cast<long>(ny) || e >= static_cast<long>(nz)) continue;
+              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) ||
+                  b >= static_cast<long>(ny) || e >= static_cast<long>(nz))
+                continue;
               const auto it = where.find(lin(a, b, e));
               if (it != where.end() && comp[it->second] < 0) {
                 comp[it->second] = comp[s];
@@ -687,7 +752,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
             }
       }
     }
-    std::sort(pieces.begin(), pieces.end(), [](const auto& x, const auto& y) { return x.size() > y.size(); });
+    std::sort(pieces.begin(), pieces.end(),
+              [](const auto& x, const auto& y) { return x.size() > y.size(); });
     if (pieces.size() < 2 || pieces[1].size() < 10) {
       out.warnings.push_back("papillary label " + std::to_string(L.papillary) +
                              ": fewer than two papillary muscles found; tips not taken from it");
@@ -707,7 +773,8 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
         tip[m] = s / n + 0.5 * voxel * fr.n;  // voxel centres lie half a voxel inside
       }
       const Eigen::Vector3d al = annulus.row(0).transpose(), pm = annulus.row(ures / 2).transpose();
-      const bool swap = (tip[0] - al).norm() - (tip[0] - pm).norm() > (tip[1] - al).norm() - (tip[1] - pm).norm();
+      const bool swap =
+          (tip[0] - al).norm() - (tip[0] - pm).norm() > (tip[1] - al).norm() - (tip[1] - pm).norm();
       set(Landmark::kAnterolateralPapillaryTip, tip[swap ? 1 : 0]);
       set(Landmark::kPosteromedialPapillaryTip, tip[swap ? 0 : 1]);
       out.notes.push_back("papillary tips: from label " + std::to_string(L.papillary));
@@ -717,7 +784,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   // ---- 8. fit quality ----------------------------------------------------------------------
   {
     auto is_leaf = [&](long i, long j, long k) {
-      if (i < 0 || j < 0 || k < 0 || i >= static_cast<long>(nx) || j >= static_cast<long>(ny) || k >= static_cast<long>(nz)) return false;
+      if (i < 0 || j < 0 || k < 0 || i >= static_cast<long>(nx) || j >= static_cast<long>(ny) ||
+          k >= static_cast<long>(nz))
+        return false;
       const std::uint8_t c = code[lin(i, j, k)];
       return c == kAnt || c == kPost;
     };
@@ -745,14 +814,17 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     }
     faces.V.resize(static_cast<Eigen::Index>(V.size()), 3);
     faces.F.resize(static_cast<Eigen::Index>(F.size()), 3);
-    for (size_t i = 0; i < V.size(); ++i) faces.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
-    for (size_t i = 0; i < F.size(); ++i) faces.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    for (size_t i = 0; i < V.size(); ++i)
+      faces.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+    for (size_t i = 0; i < F.size(); ++i)
+      faces.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
     out.surface_to_mask = point_to_mesh_distance(grid.points(), faces);
     // Atrial-facing faces: facing against the fitted surface's ventricular normal nearby.
     const TriangleMesh tri = grid.triangulate();
     Points vn = Points::Zero(tri.V.rows(), 3);
     for (Eigen::Index f = 0; f < tri.F.rows(); ++f) {
-      const Eigen::Vector3d p0 = tri.V.row(tri.F(f, 0)), p1 = tri.V.row(tri.F(f, 1)), p2 = tri.V.row(tri.F(f, 2));
+      const Eigen::Vector3d p0 = tri.V.row(tri.F(f, 0)), p1 = tri.V.row(tri.F(f, 1)),
+                            p2 = tri.V.row(tri.F(f, 2));
       const Eigen::Vector3d w = (p1 - p0).cross(p2 - p0);
       for (int k = 0; k < 3; ++k) vn.row(tri.F(f, k)) += w.transpose();
     }
@@ -764,14 +836,16 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       if (normals[f].dot(-vn.row(best).transpose()) > 0.3) atrial.push_back(centres[f]);
     }
     Points ac(static_cast<Eigen::Index>(atrial.size()), 3);
-    for (size_t i = 0; i < atrial.size(); ++i) ac.row(static_cast<Eigen::Index>(i)) = atrial[i].transpose();
+    for (size_t i = 0; i < atrial.size(); ++i)
+      ac.row(static_cast<Eigen::Index>(i)) = atrial[i].transpose();
     if (ac.rows() > 0) out.mask_to_surface = point_to_mesh_distance(ac, tri);
   }
   if (use_ring) {
     std::vector<double> d;
     for (int i = 0; i < kDense; i += 4) {
       double best = 1e30;
-      for (const Voxel& v : ring) best = std::min(best, (v.p - dense.row(i).transpose()).squaredNorm());
+      for (const Voxel& v : ring)
+        best = std::min(best, (v.p - dense.row(i).transpose()).squaredNorm());
       d.push_back(std::sqrt(best));
     }
     out.annulus_to_label = distance_stats(std::move(d));
@@ -786,12 +860,14 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       lo = lo.cwiseMin(poly.back());
       hi = hi.cwiseMax(poly.back());
     }
-    const int gx = static_cast<int>((hi.x() - lo.x()) / pix) + 1, gy = static_cast<int>((hi.y() - lo.y()) / pix) + 1;
+    const int gx = static_cast<int>((hi.x() - lo.x()) / pix) + 1,
+              gy = static_cast<int>((hi.y() - lo.y()) / pix) + 1;
     std::vector<std::uint8_t> cover(static_cast<std::size_t>(gx) * gy, 0);
     const int reach = static_cast<int>(std::ceil(0.6 * voxel / pix));
     for (const Voxel& v : leaf) {
       const Eigen::Vector2d q = fr.to2d(v.p);
-      const int cx = static_cast<int>((q.x() - lo.x()) / pix), cy = static_cast<int>((q.y() - lo.y()) / pix);
+      const int cx = static_cast<int>((q.x() - lo.x()) / pix),
+                cy = static_cast<int>((q.y() - lo.y()) / pix);
       for (int y = cy - reach; y <= cy + reach; ++y)
         for (int x = cx - reach; x <= cx + reach; ++x)
           if (x >= 0 && y >= 0 && x < gx && y < gy) cover[static_cast<std::size_t>(x) + gx * y] = 1;
@@ -804,7 +880,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
         bool in = false;  // even-odd rule
         for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
           if ((poly[i].y() > q.y()) != (poly[j].y() > q.y()) &&
-              q.x() < (poly[j].x() - poly[i].x()) * (q.y() - poly[i].y()) / (poly[j].y() - poly[i].y()) + poly[i].x())
+              q.x() < (poly[j].x() - poly[i].x()) * (q.y() - poly[i].y()) /
+                              (poly[j].y() - poly[i].y()) +
+                          poly[i].x())
             in = !in;
         }
         open += in;
@@ -818,13 +896,16 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
 
 namespace mvtwin::detection {
 
-std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m, const std::string& source) {
+std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m,
+                                                           const std::string& source) {
   m.check(source.c_str());
   // Union-find over vertices joined by triangles.
   std::vector<int> parent(static_cast<size_t>(m.V.rows()));
   for (size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
   auto find = [&](int x) {
-    while (parent[static_cast<size_t>(x)] != x) x = parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
+    while (parent[static_cast<size_t>(x)] != x)
+      x = parent[static_cast<size_t>(x)] =
+          parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
     return x;
   };
   for (Eigen::Index f = 0; f < m.F.rows(); ++f)
@@ -838,8 +919,10 @@ std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m
   for (const auto& [root, a] : area) by_area.emplace_back(a, root);
   std::sort(by_area.rbegin(), by_area.rend());
   if (by_area.size() < 2 || by_area[1].first < 0.05 * by_area[0].first) {
-    throw Error(source + ": the surface is one connected piece; give the anterior and posterior leaflets as two "
-                         "files (--mesh anterior.stl,posterior.stl) or as two separate pieces of one file");
+    throw Error(
+        source +
+        ": the surface is one connected piece; give the anterior and posterior leaflets as two "
+        "files (--mesh anterior.stl,posterior.stl) or as two separate pieces of one file");
   }
   auto piece = [&](int root) {
     TriangleMesh out;
@@ -860,9 +943,11 @@ std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m
       F.push_back(t);
     }
     out.V.resize(static_cast<Eigen::Index>(V.size()), 3);
-    for (size_t i = 0; i < V.size(); ++i) out.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+    for (size_t i = 0; i < V.size(); ++i)
+      out.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
     out.F.resize(static_cast<Eigen::Index>(F.size()), 3);
-    for (size_t i = 0; i < F.size(); ++i) out.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    for (size_t i = 0; i < F.size(); ++i)
+      out.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
     return out;
   };
   // Which is anterior: the anterior leaflet is a tall shield on a third of the annulus, the
@@ -889,16 +974,21 @@ std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m
   return {a, b};
 }
 
-FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior, const std::string& source,
-                           const SegmentationFitOptions& options, double voxel_mm) {
+FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior,
+                           const std::string& source, const SegmentationFitOptions& options,
+                           double voxel_mm) {
   anterior.check((source + " (anterior leaflet)").c_str());
   posterior.check((source + " (posterior leaflet)").c_str());
-  if (anterior.F.rows() == 0 || posterior.F.rows() == 0) throw Error(source + ": a leaflet mesh has no triangles");
-  if (!(voxel_mm >= 0.1 && voxel_mm <= 2.0)) throw Error(source + ": the rasterizing voxel must be in [0.1, 2] mm");
+  if (anterior.F.rows() == 0 || posterior.F.rows() == 0)
+    throw Error(source + ": a leaflet mesh has no triangles");
+  if (!(voxel_mm >= 0.1 && voxel_mm <= 2.0))
+    throw Error(source + ": the rasterizing voxel must be in [0.1, 2] mm");
   constexpr double kHalfThickness = 0.65;  // mm: half the FE model's leaflet thickness
   const double reach = kHalfThickness;
-  Eigen::Vector3d lo = anterior.V.colwise().minCoeff().transpose().cwiseMin(posterior.V.colwise().minCoeff().transpose());
-  Eigen::Vector3d hi = anterior.V.colwise().maxCoeff().transpose().cwiseMax(posterior.V.colwise().maxCoeff().transpose());
+  Eigen::Vector3d lo = anterior.V.colwise().minCoeff().transpose().cwiseMin(
+      posterior.V.colwise().minCoeff().transpose());
+  Eigen::Vector3d hi = anterior.V.colwise().maxCoeff().transpose().cwiseMax(
+      posterior.V.colwise().maxCoeff().transpose());
   lo -= Eigen::Vector3d::Constant(reach + 3 * voxel_mm);
   hi += Eigen::Vector3d::Constant(reach + 3 * voxel_mm);
   ImageVolume im;
@@ -906,7 +996,8 @@ FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& pos
   im.origin = lo;
   for (int k = 0; k < 3; ++k) {
     im.size[k] = static_cast<int>(std::ceil((hi[k] - lo[k]) / voxel_mm)) + 1;
-    if (im.size[k] > 1500) throw Error(source + ": the leaflet meshes span more than 600 mm: wrong units?");
+    if (im.size[k] > 1500)
+      throw Error(source + ": the leaflet meshes span more than 600 mm: wrong units?");
   }
   im.data.assign(im.num_voxels(), 0.0f);
   std::vector<float> best(im.num_voxels(), static_cast<float>(reach));
@@ -921,16 +1012,26 @@ FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& pos
         a = a.cwiseMin(m.V.row(m.F(f, k)).transpose());
         b = b.cwiseMax(m.V.row(m.F(f, k)).transpose());
       }
-      const Eigen::Vector3d i0 = (a - lo).array() / voxel_mm - reach / voxel_mm, i1 = (b - lo).array() / voxel_mm + reach / voxel_mm;
-      for (int z = std::max(0, static_cast<int>(std::floor(i0.z()))); z <= std::min(im.size[2] - 1, static_cast<int>(std::ceil(i1.z()))); ++z)
-        for (int y = std::max(0, static_cast<int>(std::floor(i0.y()))); y <= std::min(im.size[1] - 1, static_cast<int>(std::ceil(i1.y()))); ++y)
-          for (int x = std::max(0, static_cast<int>(std::floor(i0.x()))); x <= std::min(im.size[0] - 1, static_cast<int>(std::ceil(i1.x()))); ++x)
-            near[static_cast<size_t>(x) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(y) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(z))] = 1;
+      const Eigen::Vector3d i0 = (a - lo).array() / voxel_mm - reach / voxel_mm,
+                            i1 = (b - lo).array() / voxel_mm + reach / voxel_mm;
+      for (int z = std::max(0, static_cast<int>(std::floor(i0.z())));
+           z <= std::min(im.size[2] - 1, static_cast<int>(std::ceil(i1.z()))); ++z)
+        for (int y = std::max(0, static_cast<int>(std::floor(i0.y())));
+             y <= std::min(im.size[1] - 1, static_cast<int>(std::ceil(i1.y()))); ++y)
+          for (int x = std::max(0, static_cast<int>(std::floor(i0.x())));
+               x <= std::min(im.size[0] - 1, static_cast<int>(std::ceil(i1.x()))); ++x)
+            near[static_cast<size_t>(x) +
+                 static_cast<size_t>(im.size[0]) *
+                     (static_cast<size_t>(y) +
+                      static_cast<size_t>(im.size[1]) * static_cast<size_t>(z))] = 1;
     }
     for (int z = 0; z < im.size[2]; ++z)
       for (int y = 0; y < im.size[1]; ++y)
         for (int x = 0; x < im.size[0]; ++x) {
-          const size_t v = static_cast<size_t>(x) + static_cast<size_t>(im.size[0]) * (static_cast<size_t>(y) + static_cast<size_t>(im.size[1]) * static_cast<size_t>(z));
+          const size_t v = static_cast<size_t>(x) +
+                           static_cast<size_t>(im.size[0]) *
+                               (static_cast<size_t>(y) +
+                                static_cast<size_t>(im.size[1]) * static_cast<size_t>(z));
           if (!near[v]) continue;
           const double d = bvh.closest(im.position(x, y, z)).distance;
           if (d <= static_cast<double>(best[v])) {
@@ -953,7 +1054,8 @@ FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& pos
       const Eigen::Vector3d p = g.at(u, v);
       const TriangleBvh::Hit ha = ba.closest(p), hp = bp.closest(p);
       const bool commissure = u == 0 || u == U / 2;
-      const TriangleBvh::Hit& h = commissure ? (ha.distance < hp.distance ? ha : hp) : (u < U / 2 ? ha : hp);
+      const TriangleBvh::Hit& h =
+          commissure ? (ha.distance < hp.distance ? ha : hp) : (u < U / 2 ? ha : hp);
       g.points().row(static_cast<Eigen::Index>(v) * U + u) = h.point.transpose();
     }
   fit.frame.annulus = g.points().topRows(U);
@@ -971,7 +1073,8 @@ FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& pos
   fit.surface_to_mask = point_to_mesh_distance(g.points(), both);
   fit.mask_to_surface = point_to_mesh_distance(both.V, g.triangulate());
   fit.notes.push_back("surface meshes rasterized at " + std::to_string(voxel_mm).substr(0, 4) +
-                      " mm, fitted, and the grid moved onto the meshes; fit errors are to the meshes (all of their vertices)");
+                      " mm, fitted, and the grid moved onto the meshes; fit errors are to the "
+                      "meshes (all of their vertices)");
   return fit;
 }
 

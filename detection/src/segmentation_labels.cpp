@@ -29,7 +29,8 @@ bool SegmentationLabels::is_valid(std::string* error) const {
 }
 
 std::string SegmentationLabels::describe() const {
-  std::string s = "anterior=" + std::to_string(anterior) + " posterior=" + std::to_string(posterior);
+  std::string s =
+      "anterior=" + std::to_string(anterior) + " posterior=" + std::to_string(posterior);
   s += annulus ? " annulus=" + std::to_string(annulus) : " annulus=none";
   if (papillary) s += " papillary=" + std::to_string(papillary);
   return s + " (" + convention + ")";

@@ -23,7 +23,9 @@ void write(const fs::path& p, const std::string& text) { std::ofstream(p) << tex
 // A point list as 3D Slicer 5 writes it (the documentation's example layout): LPS positions.
 TEST(Markups, SlicerJsonInLpsLandsAtRas) {
   const fs::path p = temp("tips.mrk.json");
-  write(p, R"({"@schema": "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/markups-schema-v1.0.3.json#",
+  write(
+      p,
+      R"({"@schema": "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/markups-schema-v1.0.3.json#",
 "markups": [{"type": "Fiducial", "coordinateSystem": "LPS", "coordinateUnits": "mm", "controlPoints": [
   { "id": "1", "label": "anterolateral papillary tip", "position": [-53.5, -73.25, 10.0], "positionStatus": "defined" },
   { "id": "2", "label": "posteromedial papillary tip", "position": [49.75, -88.5, 0.0], "positionStatus": "defined" },
@@ -52,17 +54,19 @@ TEST(Markups, SlicerJsonInLpsLandsAtRas) {
 
 TEST(Markups, LegacyFcsv) {
   const fs::path p = temp("tips.fcsv");
-  write(p, "# Markups fiducial file version = 4.13\n# CoordinateSystem = LPS\n"
-           "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
-           "0,-19.5,13.25,29.0,0,0,0,1,1,1,0,PMPM,,\n1,-7.0,-76.5,17.5,0,0,0,1,1,1,0,ALPM,,\n");
+  write(p,
+        "# Markups fiducial file version = 4.13\n# CoordinateSystem = LPS\n"
+        "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
+        "0,-19.5,13.25,29.0,0,0,0,1,1,1,0,PMPM,,\n1,-7.0,-76.5,17.5,0,0,0,1,1,1,0,ALPM,,\n");
   const MarkupList m = read_markups(p);
   ASSERT_EQ(m.points.size(), 2u);
   EXPECT_EQ(m.points[0].label, "PMPM");
   EXPECT_EQ(m.points[0].position, Eigen::Vector3d(19.5, -13.25, 29.0));
   const fs::path r = temp("old.fcsv");  // Slicer 4.4's numeric code: 0 = RAS
-  write(r, "# Markups fiducial file version = 4.4\n# CoordinateSystem = 0\n"
-           "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
-           "vtkMRMLMarkupsFiducialNode_0,-19.5,13.25,29.0,0,0,0,1,1,1,0,PMPM,,\n");
+  write(r,
+        "# Markups fiducial file version = 4.4\n# CoordinateSystem = 0\n"
+        "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
+        "vtkMRMLMarkupsFiducialNode_0,-19.5,13.25,29.0,0,0,0,1,1,1,0,PMPM,,\n");
   EXPECT_EQ(read_markups(r).points[0].position, Eigen::Vector3d(-19.5, 13.25, 29.0));
 }
 
@@ -77,12 +81,16 @@ TEST(Markups, BadFilesAreNamed) {
       EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
     }
   };
-  expect(temp("ijk.mrk.json"), R"({"markups":[{"coordinateSystem":"IJK","controlPoints":[{"position":[1,2,3]}]}]})",
+  expect(temp("ijk.mrk.json"),
+         R"({"markups":[{"coordinateSystem":"IJK","controlPoints":[{"position":[1,2,3]}]}]})",
          "coordinate system 'IJK'");
-  expect(temp("broken.mrk.json"), R"({"markups":[{"controlPoints":[{"position":[1,2,)", "not a valid markups JSON");
+  expect(temp("broken.mrk.json"), R"({"markups":[{"controlPoints":[{"position":[1,2,)",
+         "not a valid markups JSON");
   expect(temp("nomarkups.mrk.json"), R"({"points":[]})", "no \"markups\" list");
-  expect(temp("nan.mrk.json"), R"({"markups":[{"controlPoints":[{"label":"x","position":[1,"a",3]}]}]})", "non-numeric");
-  expect(temp("empty.mrk.json"), R"({"markups":[{"controlPoints":[]}]})", "no defined control points");
+  expect(temp("nan.mrk.json"),
+         R"({"markups":[{"controlPoints":[{"label":"x","position":[1,"a",3]}]}]})", "non-numeric");
+  expect(temp("empty.mrk.json"), R"({"markups":[{"controlPoints":[]}]})",
+         "no defined control points");
   expect(temp("bad.fcsv"), "# columns = id,x,y,z,label\n0,1,zz,3,a\n", "'zz' is not a number");
   EXPECT_THROW(read_markups(temp("missing.mrk.json")), Error);
 }

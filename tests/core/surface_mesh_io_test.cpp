@@ -44,24 +44,34 @@ TEST(SurfaceMesh, EveryFormatRoundTrips) {
 
 // Files as other tools write them, by hand.
 TEST(SurfaceMesh, HandWrittenFiles) {
-  auto write = [](const fs::path& p, const std::string& t) { std::ofstream(p, std::ios::binary) << t; };
-  write(temp("a.stl"), "solid SPACE=RAS\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1 0\n"
-                       "  endloop\n endfacet\n facet normal 0 0 1\n  outer loop\n   vertex 1 0 0\n   vertex 1 1 0\n   vertex 0 1 0\n"
-                       "  endloop\n endfacet\nendsolid\n");
+  auto write = [](const fs::path& p, const std::string& t) {
+    std::ofstream(p, std::ios::binary) << t;
+  };
+  write(temp("a.stl"),
+        "solid SPACE=RAS\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   "
+        "vertex 0 1 0\n"
+        "  endloop\n endfacet\n facet normal 0 0 1\n  outer loop\n   vertex 1 0 0\n   vertex 1 1 "
+        "0\n   vertex 0 1 0\n"
+        "  endloop\n endfacet\nendsolid\n");
   SurfaceFile s = read_surface_mesh(temp("a.stl"));
   EXPECT_EQ(s.space, "RAS");
   EXPECT_EQ(s.mesh.V.rows(), 4);
   EXPECT_EQ(s.mesh.F.rows(), 2);
   // VTK 5.1's layout (OFFSETS / CONNECTIVITY), a quad fanned into two triangles.
-  write(temp("q.vtk"), "# vtk DataFile Version 5.1\nquad\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n"
-                       "POLYGONS 2 4\nOFFSETS vtktypeint64\n0 4\nCONNECTIVITY vtktypeint64\n0 1 2 3\n");
+  write(temp("q.vtk"),
+        "# vtk DataFile Version 5.1\nquad\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 "
+        "1 0 0 1 0\n"
+        "POLYGONS 2 4\nOFFSETS vtktypeint64\n0 4\nCONNECTIVITY vtktypeint64\n0 1 2 3\n");
   s = read_surface_mesh(temp("q.vtk"));
   EXPECT_EQ(s.mesh.F.rows(), 2);
   EXPECT_EQ(s.space, "");
   // Binary little-endian PLY with an extra vertex property and a uint8/int32 face list.
   {
-    std::string t = "ply\nformat binary_little_endian 1.0\ncomment SPACE=LPS\nelement vertex 3\nproperty float x\nproperty float y\n"
-                    "property float z\nproperty uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    std::string t =
+        "ply\nformat binary_little_endian 1.0\ncomment SPACE=LPS\nelement vertex 3\nproperty float "
+        "x\nproperty float y\n"
+        "property float z\nproperty uchar red\nelement face 1\nproperty list uchar int "
+        "vertex_indices\nend_header\n";
     const float v[9] = {0, 0, 0, 2, 0, 0, 0, 3, 0};
     for (int i = 0; i < 3; ++i) {
       t.append(reinterpret_cast<const char*>(v + 3 * i), 12);
@@ -91,14 +101,25 @@ TEST(SurfaceMesh, BadFilesAreNamed) {
   };
   expect("x.obj", "v 0 0 0\n", "unknown surface format");
   expect("junk.stl", "not an stl at all, and not of a binary size", "neither an ASCII STL");
-  expect("range.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\nPOLYGONS 1 4\n3 0 1 7\n",
+  expect("range.vtk",
+         "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 "
+         "0\nPOLYGONS 1 4\n3 0 1 7\n",
          "refers to vertex 7");
-  expect("grid.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\n", "not POLYDATA");
-  expect("short.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1\n", "ends early");
-  expect("nan.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
-                    "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", "NaN/Inf");
-  expect("empty.vtp", "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"0\" NumberOfPolys=\"0\"><Points>"
-                      "<DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\"></DataArray></Points></Piece></PolyData></VTKFile>",
+  expect("grid.vtk", "# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\n",
+         "not POLYDATA");
+  expect("short.vtk",
+         "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1\n",
+         "ends early");
+  expect("nan.ply",
+         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty "
+         "float z\nelement face 1\n"
+         "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n",
+         "NaN/Inf");
+  expect("empty.vtp",
+         "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"0\" "
+         "NumberOfPolys=\"0\"><Points>"
+         "<DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+         "format=\"ascii\"></DataArray></Points></Piece></PolyData></VTKFile>",
          "no triangles");
   expect("image.vtp", "<VTKFile type=\"ImageData\"></VTKFile>", "not VTK PolyData");
   EXPECT_THROW(read_surface_mesh(temp("missing.stl")), Error);

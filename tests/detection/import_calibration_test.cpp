@@ -42,7 +42,8 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   std::vector<LandmarkInput> tips;
   for (int f : {s.end_diastole, s.first_closed}) {
     lo.seed = 11 + static_cast<std::uint64_t>(f);
-    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt, std::nullopt});
+    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s,
+                      "frame" + std::to_string(f), std::nullopt, std::nullopt});
     for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
       tips.push_back({l, s.frames[f].landmark(l), s.frames[f].time_s, "tips.mrk.json"});
   }
@@ -52,25 +53,30 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   io.fit.vres = s.vres;
   const Patient imported = import_patient(frames, tips, io).patient;
 
-  const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) + ",restlength_factor_" +
-                               std::string(kChordaeGroupNames[2]);
+  const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) +
+                               ",restlength_factor_" + std::string(kChordaeGroupNames[2]);
   inverse::CalibrationOptions co;
   co.max_simulations = 30;
   co.step_tolerance = 0.02;
   co.jobs = 2;
-  inverse::ClosureObjective original_obj(p, inverse::ParameterSpace(marginal, ValveParameters{}), small_model());
-  inverse::ClosureObjective imported_obj(imported, inverse::ParameterSpace(marginal, ValveParameters{}), small_model());
+  inverse::ClosureObjective original_obj(p, inverse::ParameterSpace(marginal, ValveParameters{}),
+                                         small_model());
+  inverse::ClosureObjective imported_obj(
+      imported, inverse::ParameterSpace(marginal, ValveParameters{}), small_model());
   const inverse::CalibrationResult a = inverse::calibrate(original_obj, co);
   const inverse::CalibrationResult b = inverse::calibrate(imported_obj, co);
   const Eigen::VectorXd truth = original_obj.space().values_of(p.truth->parameters);
-  std::cout << "original: error " << a.error_before_mm << " -> " << a.error_after_mm << " mm, fitted "
-            << a.fitted.transpose() << "\nimported: error " << b.error_before_mm << " -> " << b.error_after_mm
-            << " mm, fitted " << b.fitted.transpose() << "\ntruth " << truth.transpose() << "\n";
+  std::cout << "original: error " << a.error_before_mm << " -> " << a.error_after_mm
+            << " mm, fitted " << a.fitted.transpose() << "\nimported: error " << b.error_before_mm
+            << " -> " << b.error_after_mm << " mm, fitted " << b.fitted.transpose() << "\ntruth "
+            << truth.transpose() << "\n";
   for (int i = 0; i < 2; ++i) {
     if (!b.identified[static_cast<size_t>(i)]) continue;
-    EXPECT_NEAR(b.fitted[i], truth[i], 0.05) << original_obj.space().specs()[static_cast<size_t>(i)].name;
+    EXPECT_NEAR(b.fitted[i], truth[i], 0.05)
+        << original_obj.space().specs()[static_cast<size_t>(i)].name;
   }
-  EXPECT_TRUE(b.identified[0] || b.identified[1]) << "the marginal rest lengths are identified by a closed valve";
+  EXPECT_TRUE(b.identified[0] || b.identified[1])
+      << "the marginal rest lengths are identified by a closed valve";
   EXPECT_NEAR(b.error_after_mm, a.error_after_mm, 0.1);
 }
 

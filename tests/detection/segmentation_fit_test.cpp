@@ -2,9 +2,9 @@
 
 #include <cmath>
 #include <filesystem>
+#include <iostream>
 #include <map>
 #include <numbers>
-#include <iostream>
 
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
@@ -80,7 +80,6 @@ struct AnalyticValve {
   }
 };
 
-
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 /// Mean distance from the fitted annulus points to the true annulus curve, mm.
@@ -114,7 +113,8 @@ struct RoundTrip {
   double surface_mm, annulus_mm, rim_vs_label_mm;
 };
 
-RoundTrip round_trip(const ValveFrame& truth, const std::string& convention, double voxel, std::uint64_t seed) {
+RoundTrip round_trip(const ValveFrame& truth, const std::string& convention, double voxel,
+                     std::uint64_t seed) {
   LabelMapOptions lo;
   lo.labels = segmentation_labels(convention);
   lo.voxel_mm = voxel;
@@ -123,9 +123,10 @@ RoundTrip round_trip(const ValveFrame& truth, const std::string& convention, dou
   SegmentationFitOptions fo;
   fo.labels = lo.labels;
   const FrameFit fit = fit_segmentation_frame(im, "virtual", fo);
-  std::cout << "truth atrial " << atrial_direction(truth.annulus).transpose() << " fit " << atrial_direction(fit.frame.annulus).transpose() << "\n";
-  const SymmetricDistance d =
-      symmetric_surface_distance(fit.frame.la_surface->triangulate(), truth.la_surface->triangulate());
+  std::cout << "truth atrial " << atrial_direction(truth.annulus).transpose() << " fit "
+            << atrial_direction(fit.frame.annulus).transpose() << "\n";
+  const SymmetricDistance d = symmetric_surface_distance(fit.frame.la_surface->triangulate(),
+                                                         truth.la_surface->triangulate());
   return {d.symmetric.mean, annulus_error(fit.frame.annulus, truth.annulus),
           fit.rim_vs_label ? fit.rim_vs_label->mean : std::nan("")};
 }
@@ -138,8 +139,9 @@ TEST(SegmentationFit, VirtualOpenAndClosedFramesRoundTrip) {
         for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
           const RoundTrip r = round_trip(p.sequence.frames[f], conv, voxel, seed);
           std::cout << "seed " << seed << " " << conv << " voxel " << voxel << " frame "
-                    << (f == p.sequence.end_diastole ? "ED    " : "closed") << ": surface " << r.surface_mm
-                    << " mm, annulus " << r.annulus_mm << " mm, rim vs label " << r.rim_vs_label_mm << "\n";
+                    << (f == p.sequence.end_diastole ? "ED    " : "closed") << ": surface "
+                    << r.surface_mm << " mm, annulus " << r.annulus_mm << " mm, rim vs label "
+                    << r.rim_vs_label_mm << "\n";
           EXPECT_LT(r.surface_mm, 0.5);
           EXPECT_LT(r.annulus_mm, 1.0);
         }
@@ -147,7 +149,6 @@ TEST(SegmentationFit, VirtualOpenAndClosedFramesRoundTrip) {
     }
   }
 }
-
 
 TEST(SegmentationFit, RecoversAnAnalyticClosedValve) {
   AnalyticValve valve;
@@ -176,7 +177,8 @@ TEST(SegmentationFit, RecoversAnAnalyticClosedValve) {
       ++n;
     }
   }
-  std::cout << "analytic valve: fitted LA surface vs truth, mean " << sum / n << " mm, max " << worst << " mm\n";
+  std::cout << "analytic valve: fitted LA surface vs truth, mean " << sum / n << " mm, max "
+            << worst << " mm\n";
   EXPECT_LT(sum / n, 0.3);
   EXPECT_LT(worst, 1.5);
   // The annulus runs through the ring centre.
@@ -216,7 +218,8 @@ TEST(SegmentationFit, BadLabelMapsAreNamed) {
     FAIL() << "expected an error";
   } catch (const Error& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find("seg.nii.gz: label 7 (posterior leaflet) has 0 voxels"), std::string::npos) << m;
+    EXPECT_NE(m.find("seg.nii.gz: label 7 (posterior leaflet) has 0 voxels"), std::string::npos)
+        << m;
     EXPECT_NE(m.find("labels found with voxel counts: 1: "), std::string::npos) << m;
   }
   opt.labels = {1, 1, 3, 0, "explicit"};
@@ -227,7 +230,8 @@ TEST(SegmentationFit, BadLabelMapsAreNamed) {
     fit_segmentation_frame(empty, "empty.nrrd", {});
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("empty.nrrd: no valve found"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("empty.nrrd: no valve found"), std::string::npos)
+        << e.what();
   }
   // Cut by the field of view: the leaflets reach the image border.
   ImageVolume cut = im;
@@ -237,18 +241,22 @@ TEST(SegmentationFit, BadLabelMapsAreNamed) {
     fit_segmentation_frame(cut, "cut.nii", {});
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("cut.nii: the leaflets touch the image border"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cut.nii: the leaflets touch the image border"),
+              std::string::npos)
+        << e.what();
   }
   // A second large piece of the anterior leaflet.
   ImageVolume two = im;
   for (int k = 2; k < 12; ++k)
     for (int j = 2; j < 30; ++j)
-      for (int i = 2; i < 30; ++i) two.data[i + two.size[0] * (j + static_cast<size_t>(two.size[1]) * k)] = 2.0f;
+      for (int i = 2; i < 30; ++i)
+        two.data[i + two.size[0] * (j + static_cast<size_t>(two.size[1]) * k)] = 2.0f;
   try {
     fit_segmentation_frame(two, "two.nii", {});
     FAIL();
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("several disconnected components"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("several disconnected components"), std::string::npos)
+        << e.what();
   }
   // Swapped labels: a warning, not a silent swap.
   opt.labels = {3, 2, 1, 0, "explicit"};
@@ -270,7 +278,8 @@ TEST(SegmentationFit, RealValveMvtool008) {
   rim.use_annulus_label = false;
   const FrameFit gt_rim = fit_segmentation_frame(gt_map, "008_gt", rim);
   auto show = [](const char* what, const DistanceStats& d) {
-    std::cout << what << d.mean << " +- " << d.sd << " mm (p95 " << d.p95 << ", max " << d.max << ")\n";
+    std::cout << what << d.mean << " +- " << d.sd << " mm (p95 " << d.p95 << ", max " << d.max
+              << ")\n";
   };
   show("008_gt   surface -> mask boundary: ", gt.surface_to_mask);
   show("008_gt   atrial mask -> surface:   ", gt.mask_to_surface);
@@ -278,9 +287,11 @@ TEST(SegmentationFit, RealValveMvtool008) {
   show("008_pred atrial mask -> surface:   ", pred.mask_to_surface);
   ASSERT_TRUE(gt.rim_vs_label);
   show("008_gt   rim annulus vs label:     ", *gt.rim_vs_label);
-  const SymmetricDistance d = symmetric_surface_distance(gt.frame.la_surface->triangulate(), pred.frame.la_surface->triangulate());
+  const SymmetricDistance d = symmetric_surface_distance(gt.frame.la_surface->triangulate(),
+                                                         pred.frame.la_surface->triangulate());
   show("symmetric gt <-> pred:             ", d.symmetric);
-  const SymmetricDistance dr = symmetric_surface_distance(gt.frame.la_surface->triangulate(), gt_rim.frame.la_surface->triangulate());
+  const SymmetricDistance dr = symmetric_surface_distance(gt.frame.la_surface->triangulate(),
+                                                          gt_rim.frame.la_surface->triangulate());
   show("gt: label annulus vs rim surfaces:  ", dr.symmetric);
   EXPECT_EQ(gt_rim.annulus_source, "leaflet rim");
   EXPECT_LT(gt.surface_to_mask.mean, 0.6);
@@ -313,17 +324,22 @@ TEST(SegmentationFit, LeafletSurfaceMeshes) {
       leaf[k].V = all.V;
       std::vector<Eigen::Vector3i> F;
       for (Eigen::Index t = 0; t < all.F.rows(); ++t)
-        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0)) F.emplace_back(all.F.row(t).transpose());
+        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
+          F.emplace_back(all.F.row(t).transpose());
       leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
-      for (size_t i = 0; i < F.size(); ++i) leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+      for (size_t i = 0; i < F.size(); ++i)
+        leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
     }
     write_surface_mesh(dir / "anterior.stl", leaf[0]);
     write_surface_mesh(dir / "posterior.ply", leaf[1]);
     const FrameFit two = fit_surface_frame(read_surface_mesh(dir / "anterior.stl").mesh,
                                            read_surface_mesh(dir / "posterior.ply").mesh, "meshes");
-    const double e2 = symmetric_surface_distance(two.frame.la_surface->triangulate(), truth.la_surface->triangulate()).symmetric.mean;
+    const double e2 = symmetric_surface_distance(two.frame.la_surface->triangulate(),
+                                                 truth.la_surface->triangulate())
+                          .symmetric.mean;
     const double a2 = annulus_error(two.frame.annulus, truth.annulus);
-    std::cout << "frame " << f << ": two mesh files: surface " << e2 << " mm, annulus " << a2 << " mm\n";
+    std::cout << "frame " << f << ": two mesh files: surface " << e2 << " mm, annulus " << a2
+              << " mm\n";
     EXPECT_LT(e2, 0.5);
     EXPECT_LT(a2, 1.0);
     EXPECT_LT(two.surface_to_mask.mean, 1e-6);  // on the meshes
@@ -338,11 +354,15 @@ TEST(SegmentationFit, LeafletSurfaceMeshes) {
     const auto [a, b] = split_leaflet_meshes(read_surface_mesh(dir / "both.vtp").mesh, "both.vtp");
     EXPECT_EQ(a.F.rows(), leaf[0].F.rows()) << "the anterior leaflet is told apart by its shape";
     const FrameFit one = fit_surface_frame(a, b, "both.vtp");
-    const double e1 = symmetric_surface_distance(one.frame.la_surface->triangulate(), truth.la_surface->triangulate()).symmetric.mean;
+    const double e1 = symmetric_surface_distance(one.frame.la_surface->triangulate(),
+                                                 truth.la_surface->triangulate())
+                          .symmetric.mean;
     EXPECT_LT(e1, 0.5);
   }
   // One connected surface cannot be split into leaflets.
-  EXPECT_THROW(split_leaflet_meshes(p.sequence.frames[p.sequence.end_diastole].la_surface->triangulate(), "one.stl"), Error);
+  EXPECT_THROW(split_leaflet_meshes(
+                   p.sequence.frames[p.sequence.end_diastole].la_surface->triangulate(), "one.stl"),
+               Error);
 }
 
 TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
@@ -355,7 +375,8 @@ TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
   std::vector<LabelFrame> frames;
   for (int f : {s.first_closed, s.end_diastole}) {  // out of order on purpose
     lo.seed = static_cast<std::uint64_t>(f);
-    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s, "frame" + std::to_string(f), std::nullopt, std::nullopt});
+    frames.push_back({valve_label_map(s.frames[f], lo), s.frames[f].time_s,
+                      "frame" + std::to_string(f), std::nullopt, std::nullopt});
   }
   PatientImportOptions o;
   o.fit.labels = lo.labels;
@@ -369,37 +390,49 @@ TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
   EXPECT_TRUE(r.assumed.empty());
   for (int k = 0; k < 2; ++k) {
     const ValveFrame& truth = s.frames[k ? s.first_closed : s.end_diastole];
-    for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip}) {
+    for (Landmark l :
+         {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip}) {
       EXPECT_FALSE(q.frames[k].assumed(l));
-      EXPECT_LT((q.frames[k].landmark(l) - truth.landmark(l)).norm(), 1.0) << name(l) << " frame " << k;
+      EXPECT_LT((q.frames[k].landmark(l) - truth.landmark(l)).norm(), 1.0)
+          << name(l) << " frame " << k;
     }
   }
   // Without the papillary label the tips are assumed, said so, and near the truth's anatomy.
   for (auto& f : frames) f.labels_override = segmentation_labels("mvtool");
   const PatientImport a = import_patient(frames, {}, o);
   EXPECT_TRUE(a.patient.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
-  EXPECT_EQ(a.patient.sequence.assumed_landmarks(), "anterolateral_papillary_tip, posteromedial_papillary_tip");
+  EXPECT_EQ(a.patient.sequence.assumed_landmarks(),
+            "anterolateral_papillary_tip, posteromedial_papillary_tip");
   EXPECT_EQ(a.assumed.size(), 2u);
   EXPECT_NE(a.patient.provenance.source.find("ASSUMED"), std::string::npos);
   const double err = (a.patient.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip) -
-                      s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip)).norm();
+                      s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip))
+                         .norm();
   std::cout << "assumed anterolateral tip vs the virtual patient's: " << err << " mm\n";
   EXPECT_LT(err, 12.0);
   // Landmarks given in one frame win there and are held (assumed) in the other.
-  const Eigen::Vector3d tip = s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip);
-  const PatientImport g = import_patient(frames, {{Landmark::kAnterolateralPapillaryTip, tip, s.frames[s.end_diastole].time_s, "tips.mrk.json"}}, o);
+  const Eigen::Vector3d tip =
+      s.frames[s.end_diastole].landmark(Landmark::kAnterolateralPapillaryTip);
+  const PatientImport g = import_patient(frames,
+                                         {{Landmark::kAnterolateralPapillaryTip, tip,
+                                           s.frames[s.end_diastole].time_s, "tips.mrk.json"}},
+                                         o);
   EXPECT_EQ(g.patient.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip), tip);
   EXPECT_FALSE(g.patient.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
   EXPECT_TRUE(g.patient.sequence.frames[1].assumed(Landmark::kAnterolateralPapillaryTip));
   // Markups in another space (here: IJK indices) are refused.
-  EXPECT_THROW(import_patient(frames, {{Landmark::kAnterolateralPapillaryTip, Eigen::Vector3d(150, 160, 40), std::nullopt, "ijk.mrk.json"}}, o),
+  EXPECT_THROW(import_patient(frames,
+                              {{Landmark::kAnterolateralPapillaryTip, Eigen::Vector3d(150, 160, 40),
+                                std::nullopt, "ijk.mrk.json"}},
+                              o),
                Error);
   // Duplicate times, and frames of another patient (grids that disagree), are refused.
   std::vector<LabelFrame> dup = frames;
   dup[1].time_s = dup[0].time_s;
   EXPECT_THROW(import_patient(dup, {}, o), Error);
   std::vector<LabelFrame> mixed = frames;
-  mixed[0].labels = valve_label_map(closed_patient(2).sequence.frames[closed_patient(2).sequence.first_closed], lo);
+  mixed[0].labels = valve_label_map(
+      closed_patient(2).sequence.frames[closed_patient(2).sequence.first_closed], lo);
   try {
     import_patient(mixed, {}, o);
     FAIL() << "expected frames of two patients to be refused";
@@ -409,23 +442,28 @@ TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
 }
 
 TEST(PatientImport, MarkupLabels) {
-  EXPECT_EQ(landmark_from_label("Anterolateral papillary tip"), Landmark::kAnterolateralPapillaryTip);
+  EXPECT_EQ(landmark_from_label("Anterolateral papillary tip"),
+            Landmark::kAnterolateralPapillaryTip);
   EXPECT_EQ(landmark_from_label("ALPM"), Landmark::kAnterolateralPapillaryTip);
   EXPECT_EQ(landmark_from_label("PM papillary"), Landmark::kPosteromedialPapillaryTip);
-  EXPECT_EQ(landmark_from_label("posteromedial_papillary_tip"), Landmark::kPosteromedialPapillaryTip);
+  EXPECT_EQ(landmark_from_label("posteromedial_papillary_tip"),
+            Landmark::kPosteromedialPapillaryTip);
   EXPECT_EQ(landmark_from_label("left trigone"), Landmark::kAnterolateralTrigone);
   EXPECT_EQ(landmark_from_label("PM commissure"), Landmark::kPosteromedialCommissure);
   EXPECT_EQ(landmark_from_label("Posterior annulus midpoint"), Landmark::kPosteriorAnnulusMidpoint);
   EXPECT_FALSE(landmark_from_label("F-1"));
   MarkupList m;
   m.points = {{"F-1", {1, 2, 3}}, {"F-2", {4, 5, 6}}};
-  const auto two = landmarks_from_markups(m, "tips.fcsv", std::nullopt);  // two unlabelled: the tips, in order
+  const auto two =
+      landmarks_from_markups(m, "tips.fcsv", std::nullopt);  // two unlabelled: the tips, in order
   ASSERT_EQ(two.size(), 2u);
   EXPECT_EQ(two[1].landmark, Landmark::kPosteromedialPapillaryTip);
   m.points.push_back({"F-3", {7, 8, 9}});
   EXPECT_THROW(landmarks_from_markups(m, "three.fcsv", std::nullopt), Error);
-  const auto ordered = landmarks_from_markups(
-      m, "three.fcsv", 0.1, {Landmark::kAnterolateralTrigone, Landmark::kPosteromedialTrigone, Landmark::kAnterolateralPapillaryTip});
+  const auto ordered =
+      landmarks_from_markups(m, "three.fcsv", 0.1,
+                             {Landmark::kAnterolateralTrigone, Landmark::kPosteromedialTrigone,
+                              Landmark::kAnterolateralPapillaryTip});
   EXPECT_EQ(ordered[2].landmark, Landmark::kAnterolateralPapillaryTip);
   EXPECT_EQ(*ordered[2].time_s, 0.1);
   EXPECT_EQ(segment_role("Anterior Leaflet"), "anterior");

@@ -26,7 +26,7 @@ SurfaceFile read_surface_mesh(const std::filesystem::path& path);
 /// Writes a surface (for exchange and tests): .stl (binary), .ply (ASCII), .vtk (legacy ASCII),
 /// .vtp (XML, base64 binary, zlib-compressed when `compress`). `space` ("LPS", "RAS" or "")
 /// is written as 3D Slicer's "SPACE=" mark; coordinates are written as given. Atomic.
-void write_surface_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, const std::string& space = "",
-                        bool compress = true);
+void write_surface_mesh(const std::filesystem::path& path, const TriangleMesh& mesh,
+                        const std::string& space = "", bool compress = true);
 
 }  // namespace mvtwin

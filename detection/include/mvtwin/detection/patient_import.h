@@ -41,7 +41,8 @@ std::optional<Landmark> landmark_from_label(std::string_view label);
 /// `order` (landmark names in the order of the points), else two points are the
 /// anterolateral and posteromedial papillary tips. Throws mvtwin::Error naming the file for
 /// points it cannot place.
-std::vector<LandmarkInput> landmarks_from_markups(const MarkupList& markups, const std::string& source,
+std::vector<LandmarkInput> landmarks_from_markups(const MarkupList& markups,
+                                                  const std::string& source,
                                                   std::optional<double> time_s,
                                                   const std::vector<Landmark>& order = {});
 
@@ -73,7 +74,8 @@ struct PatientImport {
 /// the valve, ...). Papillary tips that are neither labelled nor given are estimated from
 /// published anatomy (26.5 mm below the annulus plane, 30 mm apart, 4 mm posterior;
 /// docs/virtual-patients.md) and marked assumed.
-PatientImport import_patient(std::vector<LabelFrame> frames, const std::vector<LandmarkInput>& landmarks,
+PatientImport import_patient(std::vector<LabelFrame> frames,
+                             const std::vector<LandmarkInput>& landmarks,
                              const PatientImportOptions& options);
 
 }  // namespace mvtwin::detection

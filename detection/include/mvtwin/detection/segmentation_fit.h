@@ -77,13 +77,15 @@ namespace mvtwin::detection {
 /// atrial side is used). The meshes are rasterized at `voxel_mm` into a slab of half a leaflet's
 /// thickness either side, fitted like a label map without an annulus label, and the grid is
 /// then moved onto the meshes (closest points). Throws mvtwin::Error naming `source`.
-FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior, const std::string& source,
-                           const SegmentationFitOptions& options = {}, double voxel_mm = 0.4);
+FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior,
+                           const std::string& source, const SegmentationFitOptions& options = {},
+                           double voxel_mm = 0.4);
 
 /// Splits one mesh holding both leaflets into its two largest connected pieces, anterior first:
 /// the anterior leaflet is the rounder piece, area / boundary length^2 (a tall shield on a third
 /// of the annulus; the posterior one is a long low crescent). Throws mvtwin::Error naming
 /// `source` when it is one connected piece.
-std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& both, const std::string& source);
+std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& both,
+                                                           const std::string& source);
 
 }  // namespace mvtwin::detection
