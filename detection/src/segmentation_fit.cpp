@@ -265,13 +265,6 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   for (const Voxel& v : leaf) (v.code == kAnt ? out.anterior_voxels : out.posterior_voxels)++;
   out.annulus_voxels = static_cast<int>(ring.size());
   out.papillary_voxels = static_cast<int>(pap.size());
-  if (out.anterior_voxels < out.posterior_voxels) {
-    out.warnings.push_back(
-        "the anterior leaflet label (" + std::to_string(L.anterior) + ", " +
-        std::to_string(out.anterior_voxels) + " voxels) is smaller than the posterior one (" +
-        std::to_string(L.posterior) + ", " + std::to_string(out.posterior_voxels) +
-        "); the anterior leaflet is normally the larger: are the labels swapped?");
-  }
   const double voxel = im.spacing.maxCoeff();
   const bool use_ring = L.annulus != 0 && opt.use_annulus_label && ring.size() >= 50;
   if (L.annulus != 0 && ring.size() < 50) {
@@ -471,9 +464,22 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   // n points into the atrium, so increasing angle is counter-clockwise seen from the atrium; u
   // runs clockwise, entering the anterior arc at its high-angle end.
   const int i_al = (best_start + best_len) % kDense, i_pm = best_start;
+  const double anterior_arc_deg = 360.0 * best_len / kDense;
   out.notes.push_back("anterior annulus arc: " +
-                      std::to_string(static_cast<int>(std::lround(360.0 * best_len / kDense))) +
-                      " degrees");
+                      std::to_string(static_cast<int>(std::lround(anterior_arc_deg))) + " degrees");
+  // Swapped labels: the anterior leaflet hangs from about a third of the annulus (the
+  // aortic-mitral curtain between the trigones), the posterior from the rest. Voxel counts do
+  // not tell them apart (the two leaflets' areas are similar). Warned, never swapped silently.
+  if (anterior_arc_deg > 180.0) {
+    out.warnings.push_back(
+        "the anterior leaflet label (" + std::to_string(L.anterior) + ", " +
+        std::to_string(out.anterior_voxels) + " voxels) hangs from " +
+        std::to_string(static_cast<int>(std::lround(anterior_arc_deg))) +
+        " degrees of the annulus, the posterior one (" + std::to_string(L.posterior) + ", " +
+        std::to_string(out.posterior_voxels) +
+        " voxels) from the rest; the anterior leaflet normally takes about a third: are the "
+        "labels swapped?");
+  }
   const int ures = opt.ures, vres = opt.vres;
   auto sample_annulus = [&](const Points& curve, std::vector<int>* dense_index) {
     Points a(ures, 3);

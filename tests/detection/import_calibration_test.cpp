@@ -52,6 +52,30 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   io.fit.ures = s.ures;
   io.fit.vres = s.vres;
   const Patient imported = import_patient(frames, tips, io).patient;
+  // The same frames as leaflet surface meshes (one per leaflet, from the atrial surface).
+  std::vector<LabelFrame> mesh_frames;
+  for (int f : {s.end_diastole, s.first_closed}) {
+    const LeafletGrid fine = s.frames[f].la_surface->resampled(48, 30);
+    const TriangleMesh all = fine.triangulate();
+    const Eigen::VectorXi tags = fine.triangle_tags();
+    TriangleMesh leaf[2];
+    for (int k = 0; k < 2; ++k) {
+      leaf[k].V = all.V;
+      std::vector<Eigen::Vector3i> F;
+      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
+        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
+          F.emplace_back(all.F.row(t).transpose());
+      leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
+      for (size_t i = 0; i < F.size(); ++i)
+        leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+    }
+    LabelFrame lf;
+    lf.time_s = s.frames[f].time_s;
+    lf.source = "meshes" + std::to_string(f);
+    lf.meshes = std::make_pair(leaf[0], leaf[1]);
+    mesh_frames.push_back(std::move(lf));
+  }
+  const Patient from_meshes = import_patient(mesh_frames, tips, io).patient;
 
   const std::string marginal = "restlength_factor_" + std::string(kChordaeGroupNames[0]) +
                                ",restlength_factor_" + std::string(kChordaeGroupNames[2]);
@@ -78,6 +102,18 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   EXPECT_TRUE(b.identified[0] || b.identified[1])
       << "the marginal rest lengths are identified by a closed valve";
   EXPECT_NEAR(b.error_after_mm, a.error_after_mm, 0.1);
+
+  inverse::ClosureObjective mesh_obj(
+      from_meshes, inverse::ParameterSpace(marginal, ValveParameters{}), small_model());
+  const inverse::CalibrationResult c = inverse::calibrate(mesh_obj, co);
+  std::cout << "from meshes: error " << c.error_before_mm << " -> " << c.error_after_mm
+            << " mm, fitted " << c.fitted.transpose() << "\n";
+  for (int i = 0; i < 2; ++i) {
+    if (!c.identified[static_cast<size_t>(i)]) continue;
+    EXPECT_NEAR(c.fitted[i], truth[i], 0.05)
+        << "meshes: " << original_obj.space().specs()[static_cast<size_t>(i)].name;
+  }
+  EXPECT_NEAR(c.error_after_mm, a.error_after_mm, 0.1);
 }
 
 }  // namespace

@@ -258,11 +258,23 @@ TEST(SegmentationFit, BadLabelMapsAreNamed) {
     EXPECT_NE(std::string(e.what()).find("several disconnected components"), std::string::npos)
         << e.what();
   }
-  // Swapped labels: a warning, not a silent swap.
-  opt.labels = {3, 2, 1, 0, "explicit"};
-  const FrameFit swapped = fit_segmentation_frame(im, "swapped", opt);
-  ASSERT_FALSE(swapped.warnings.empty());
-  EXPECT_NE(swapped.warnings[0].find("swapped"), std::string::npos);
+}
+
+TEST(SegmentationFit, SwappedLabelsAreAWarningNotASilentSwap) {
+  const Patient& p = closed_patient(1);
+  for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
+    LabelMapOptions lo;
+    lo.labels = segmentation_labels("mvseg");
+    lo.voxel_mm = 0.8;
+    const ImageVolume im = valve_label_map(p.sequence.frames[f], lo);
+    SegmentationFitOptions right, swapped;
+    right.labels = lo.labels;
+    swapped.labels = {lo.labels.posterior, lo.labels.anterior, 0, 0, "explicit"};
+    EXPECT_TRUE(fit_segmentation_frame(im, "right", right).warnings.empty()) << "frame " << f;
+    const FrameFit w = fit_segmentation_frame(im, "swapped", swapped);
+    ASSERT_FALSE(w.warnings.empty()) << "frame " << f;
+    EXPECT_NE(w.warnings[0].find("swapped"), std::string::npos);
+  }
 }
 
 // The real patient (mvtool case 008): manual and automatic segmentations of one closed valve.
@@ -294,6 +306,7 @@ TEST(SegmentationFit, RealValveMvtool008) {
                                                           gt_rim.frame.la_surface->triangulate());
   show("gt: label annulus vs rim surfaces:  ", dr.symmetric);
   EXPECT_EQ(gt_rim.annulus_source, "leaflet rim");
+  EXPECT_TRUE(gt.warnings.empty()) << gt.warnings.front();  // labels as the expert gave them
   EXPECT_LT(gt.surface_to_mask.mean, 0.6);
   EXPECT_LT(pred.surface_to_mask.mean, 0.6);
   EXPECT_LT(gt.mask_to_surface.mean, 1.5);

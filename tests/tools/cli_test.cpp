@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 
@@ -366,6 +367,20 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
                                                            v.sequence.frames[k ? fc : ed].la_surface->triangulate());
     EXPECT_LT(d.symmetric.mean, 0.5) << "sequence frame " << k;
   }
+  // The benchmark's figures and fields (one patient, one voxel size: the command, not the numbers).
+  r = run("bench import --patients 1 --voxels 0.8 --closure-set ures=16 --closure-set vres=10 --json " + path("bench.json"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  {
+    std::ifstream in(path("bench.json"));
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (const char* key : {"\"rows\"", "\"voxel_mm\"", "\"convention\"", "\"surface_error_open_mm\"",
+                            "\"surface_error_closed_mm\"", "\"annulus_error_mm\"", "\"s_per_frame\"", "\"mvseg\"",
+                            "\"mvtool\"", "SYNTHETIC"})
+      EXPECT_NE(text.find(key), std::string::npos) << key;
+  }
+  r = run("bench import --patients 1 --closure-set peak_pressure_mmhg=80");
+  EXPECT_EQ(r.code, 1);  // a parameter is refused, not silently dropped
+  EXPECT_NE(r.err.find("a patient parameter"), std::string::npos) << r.err;
   r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;
