@@ -96,6 +96,25 @@ ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& o
   return im;
 }
 
+std::pair<TriangleMesh, TriangleMesh> leaflet_surface_meshes(const LeafletGrid& grid, int ures,
+                                                             int vres) {
+  const LeafletGrid fine = grid.resampled(ures, vres);
+  const TriangleMesh all = fine.triangulate();
+  const Eigen::VectorXi tags = fine.triangle_tags();
+  TriangleMesh leaf[2];
+  for (int k = 0; k < 2; ++k) {
+    leaf[k].V = all.V;
+    std::vector<Eigen::Vector3i> F;
+    for (Eigen::Index t = 0; t < all.F.rows(); ++t)
+      if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
+        F.emplace_back(all.F.row(t).transpose());
+    leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
+    for (size_t i = 0; i < F.size(); ++i)
+      leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+  }
+  return {leaf[0], leaf[1]};
+}
+
 ImageVolume union_geometry(const std::vector<ImageVolume>& boxes) {
   if (boxes.empty()) throw Error("label map: no geometry to join");
   ImageVolume out = boxes.front();

@@ -55,24 +55,10 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
   // The same frames as leaflet surface meshes (one per leaflet, from the atrial surface).
   std::vector<LabelFrame> mesh_frames;
   for (int f : {s.end_diastole, s.first_closed}) {
-    const LeafletGrid fine = s.frames[f].la_surface->resampled(48, 30);
-    const TriangleMesh all = fine.triangulate();
-    const Eigen::VectorXi tags = fine.triangle_tags();
-    TriangleMesh leaf[2];
-    for (int k = 0; k < 2; ++k) {
-      leaf[k].V = all.V;
-      std::vector<Eigen::Vector3i> F;
-      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
-        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
-          F.emplace_back(all.F.row(t).transpose());
-      leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
-      for (size_t i = 0; i < F.size(); ++i)
-        leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
-    }
     LabelFrame lf;
     lf.time_s = s.frames[f].time_s;
     lf.source = "meshes" + std::to_string(f);
-    lf.meshes = std::make_pair(leaf[0], leaf[1]);
+    lf.meshes = leaflet_surface_meshes(*s.frames[f].la_surface, 48, 30);
     mesh_frames.push_back(std::move(lf));
   }
   const Patient from_meshes = import_patient(mesh_frames, tips, io).patient;

@@ -329,20 +329,8 @@ TEST(SegmentationFit, LeafletSurfaceMeshes) {
   fs::create_directories(dir);
   for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
     const ValveFrame& truth = p.sequence.frames[f];
-    const LeafletGrid fine = truth.la_surface->resampled(48, 30);
-    const TriangleMesh all = fine.triangulate();
-    const Eigen::VectorXi tags = fine.triangle_tags();
-    TriangleMesh leaf[2];
-    for (int k = 0; k < 2; ++k) {
-      leaf[k].V = all.V;
-      std::vector<Eigen::Vector3i> F;
-      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
-        if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
-          F.emplace_back(all.F.row(t).transpose());
-      leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
-      for (size_t i = 0; i < F.size(); ++i)
-        leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
-    }
+    auto [anterior_mesh, posterior_mesh] = leaflet_surface_meshes(*truth.la_surface, 48, 30);
+    TriangleMesh leaf[2] = {anterior_mesh, posterior_mesh};
     write_surface_mesh(dir / "anterior.stl", leaf[0]);
     write_surface_mesh(dir / "posterior.ply", leaf[1]);
     const FrameFit two = fit_surface_frame(read_surface_mesh(dir / "anterior.stl").mesh,
@@ -359,10 +347,10 @@ TEST(SegmentationFit, LeafletSurfaceMeshes) {
     // Both leaflets in one file: split into its two pieces (the commissure columns are shared by
     // the grid's leaflets, so here the pieces come from separate vertex copies).
     TriangleMesh both;
-    both.V.resize(2 * all.V.rows(), 3);
+    both.V.resize(leaf[0].V.rows() + leaf[1].V.rows(), 3);
     both.V << leaf[0].V, leaf[1].V;
     both.F.resize(leaf[0].F.rows() + leaf[1].F.rows(), 3);
-    both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(all.V.rows())).matrix();
+    both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(leaf[0].V.rows())).matrix();
     write_surface_mesh(dir / "both.vtp", both, "RAS");
     const auto [a, b] = split_leaflet_meshes(read_surface_mesh(dir / "both.vtp").mesh, "both.vtp");
     EXPECT_EQ(a.F.rows(), leaf[0].F.rows()) << "the anterior leaflet is told apart by its shape";

@@ -14,6 +14,7 @@
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/surface_mesh_io.h"
+#include "mvtwin/detection/label_map.h"
 
 #include "mvtwin/core/patient_file.h"
 
@@ -318,28 +319,18 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
   // The same frames as leaflet surface meshes: two files at end-diastole (STL and PLY, in LPS as
   // 3D Slicer writes them, with its SPACE mark), one file holding both leaflets when closed.
   for (int k = 0; k < 2; ++k) {
-    const LeafletGrid fine = v.sequence.frames[k ? fc : ed].la_surface->resampled(48, 30);
-    const mvtwin::TriangleMesh all = fine.triangulate();
-    const Eigen::VectorXi tags = fine.triangle_tags();
-    mvtwin::TriangleMesh leaf[2];
-    for (int l = 0; l < 2; ++l) {
-      leaf[l].V = all.V;
-      if (k == 0) leaf[l].V.leftCols(2) *= -1.0;  // LPS
-      std::vector<Eigen::Vector3i> F;
-      for (Eigen::Index t = 0; t < all.F.rows(); ++t)
-        if ((tags[t] == static_cast<int>(mvtwin::LeafletTag::kAnterior)) == (l == 0)) F.emplace_back(all.F.row(t).transpose());
-      leaf[l].F.resize(static_cast<Eigen::Index>(F.size()), 3);
-      for (size_t i = 0; i < F.size(); ++i) leaf[l].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
-    }
+    auto [anterior_mesh, posterior_mesh] = mvtwin::detection::leaflet_surface_meshes(*v.sequence.frames[k ? fc : ed].la_surface, 48, 30);
+    mvtwin::TriangleMesh leaf[2] = {anterior_mesh, posterior_mesh};
+    for (int l = 0; l < 2 && k == 0; ++l) leaf[l].V.leftCols(2) *= -1.0;  // LPS
     if (k == 0) {
       mvtwin::write_surface_mesh(path("ed_al.stl"), leaf[0], "LPS");
       mvtwin::write_surface_mesh(path("ed_pl.ply"), leaf[1], "LPS");
     } else {
       mvtwin::TriangleMesh both;
-      both.V.resize(2 * all.V.rows(), 3);
+      both.V.resize(leaf[0].V.rows() + leaf[1].V.rows(), 3);
       both.V << leaf[0].V, leaf[1].V;
       both.F.resize(leaf[0].F.rows() + leaf[1].F.rows(), 3);
-      both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(all.V.rows())).matrix();
+      both.F << leaf[0].F, (leaf[1].F.array() + static_cast<int>(leaf[0].V.rows())).matrix();
       mvtwin::write_surface_mesh(path("fc.vtp"), both, "RAS");
     }
   }
