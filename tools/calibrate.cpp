@@ -86,12 +86,14 @@ json calibration_json(const CalibrationRecord& c) {
            {{"mvtwin_version", c.provenance.version},
             {"command", c.provenance.command},
             {"created_utc", c.provenance.created_utc},
-            {"seed", c.provenance.seed}}}};
+            {"seed", c.provenance.seed},
+            {"source", c.provenance.source}}}};
 }
 
 void print_calibration(const CalibrationRecord& c, std::ostream& os) {
   os << "calibration of " << c.patient_id << (c.synthetic ? " [SYNTHETIC]" : "") << " by "
      << c.method << ": " << c.termination << "\n";
+  if (!c.provenance.source.empty()) os << "  " << c.provenance.source << "\n";
   os << "  error " << num(c.error_before_mm) << " -> " << num(c.error_after_mm) << " mm; "
      << c.simulations << " simulations (" << c.failed_simulations << " failed, " << c.cache_hits
      << " from the cache), " << num(c.wall_s, 1) << " s\n";
@@ -195,6 +197,7 @@ void register_calibrate(CLI::App& app, Context& ctx) {
       rec.provenance.version = kVersion;
       rec.provenance.command = ctx.command_line;
       rec.provenance.created_utc = utc_now_iso8601();
+      rec.provenance.source = assumed_note(p);
       write_calibration_file(*out, rec);
       const fs::path js = fs::path(*out).replace_extension(".json");
       nlohmann::json summary = calibration_json(rec);

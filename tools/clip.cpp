@@ -176,7 +176,8 @@ void register_clip(CLI::App& app, Context& ctx) {
              {"before", quality_json(before.quality)},
              {"provenance",
               {{"mvtwin_version", kVersion}, {"command", ctx.command_line},
-               {"created_utc", utc_now_iso8601()}, {"seed", p.provenance.seed}}}};
+               {"created_utc", utc_now_iso8601()}, {"seed", p.provenance.seed},
+                {"source", assumed_note(p)}}}};
       std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
       if (*suggest) {
         inverse::rank_by_residual_orifice(&clipped);

@@ -78,6 +78,7 @@ void print_simulation_info(const SimulationRecord& r, std::ostream& os) {
      << "  (" << r.patient_file << ")\n";
   os << "made by   mvtwin " << r.provenance.version << ", " << r.provenance.created_utc << "\n";
   os << "command   " << r.provenance.command << "\n";
+  if (!r.provenance.source.empty()) os << "input     " << r.provenance.source << "\n";
   os << "status    " << r.status << (r.reason.empty() ? "" : ": " + r.reason) << "\n";
   os << "summary  ";
   for (const auto& [k, v] : r.summary) os << " " << k << "=" << v;

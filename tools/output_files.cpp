@@ -23,7 +23,13 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
   rec.provenance.command = ctx.command_line;
   rec.provenance.created_utc = utc_now_iso8601();
   rec.provenance.seed = p.provenance.seed;
+  rec.provenance.source = assumed_note(p);
   write_simulation_file(out, rec);
+}
+
+std::string assumed_note(const Patient& p) {
+  const std::string a = p.sequence.assumed_landmarks();
+  return a.empty() ? "" : "input ASSUMED (estimated from published anatomy, not observed): " + a;
 }
 
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent) {

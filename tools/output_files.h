@@ -19,6 +19,10 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
                              const ValveParameters& parameters, const Patient& patient,
                              const std::string& patient_file, const Context& ctx);
 
+/// "input ASSUMED (...): names" for a patient with landmarks estimated rather than observed, ""
+/// otherwise: recorded in every result file made from it.
+std::string assumed_note(const Patient& patient);
+
 /// Writes `j` (indented by `indent`) to `path` atomically; nothing for an empty path.
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent = 2);
 

@@ -18,6 +18,8 @@ void write_result_header(const Location& root, const char* format, long format_v
   root.attr("command", h.provenance.command);
   root.attr("created_utc", h.provenance.created_utc);
   root.attr("seed", static_cast<long>(h.provenance.seed));
+  // What the input assumed rather than observed (an imported patient's papillary tips, ...).
+  if (!h.provenance.source.empty()) root.attr("source", h.provenance.source);
   std::vector<std::string> opts;
   for (const auto& [k, v] : h.options) opts.push_back(k + "=" + v);
   root.write_strings("options", opts);
@@ -40,6 +42,7 @@ ResultHeader read_result_header(const Location& root, const char* format, long f
   h.provenance.command = root.attr_string("command");
   h.provenance.created_utc = root.attr_string("created_utc");
   h.provenance.seed = static_cast<std::uint64_t>(root.attr_long("seed"));
+  h.provenance.source = root.has_attr("source") ? root.attr_string("source") : "";
   for (const std::string& kv : root.read_strings("options")) {
     const auto eq = kv.find('=');
     if (eq == std::string::npos) root.fail("options", "entry without '=': " + kv);

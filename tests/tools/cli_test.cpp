@@ -375,6 +375,11 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
   r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;
+  r = run("info " + path("imp_sim.h5"));  // the result file records what its input assumed
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("input ASSUMED (estimated from published anatomy, not observed): anterolateral_papillary_tip"),
+            std::string::npos)
+      << r.out;
 }
 
 }  // namespace
