@@ -56,54 +56,10 @@ std::vector<detection::LabelFrame> read_label_file(const std::string& file,
   } else {
     vols = read_image_series(file);
   }
-  const bool segmentation = kv.count("Segment0_LabelValue") || kv.count("Segment0_Name");
-  if (segmentation && !explicit_labels) {
-    // 3D Slicer segmentation: segments (name, label value, layer); overlapping segments are in
-    // layers, read here as the 4th axis.
-    std::map<std::string, std::pair<int, int>> role;  // role -> (layer, value)
-    std::string names;
-    for (int s = 0; kv.count("Segment" + std::to_string(s) + "_Name") ||
-                    kv.count("Segment" + std::to_string(s) + "_LabelValue");
-         ++s) {
-      const std::string k = "Segment" + std::to_string(s) + "_";
-      const std::string nm = kv.count(k + "Name") ? kv[k + "Name"] : "";
-      auto integer = [&](const std::string& key, int fallback) {
-        if (!kv.count(key)) return fallback;
-        char* e = nullptr;
-        const long v = std::strtol(kv[key].c_str(), &e, 10);
-        if (e == kv[key].c_str() || v < 0 || v > 1000000)
-          throw Error(file + ": " + key + " is not a valid number ('" + kv[key] + "')");
-        return static_cast<int>(v);
-      };
-      const int value = integer(k + "LabelValue", s + 1);
-      const int layer = integer(k + "Layer", 0);
-      names += (names.empty() ? "'" : ", '") + nm + "'";
-      const std::string r = detection::segment_role(nm);
-      if (r.empty()) continue;
-      if (role.count(r))
-        throw Error(file + ": two segments are the " + r + " (" + names + "); give --labels");
-      if (layer < 0 || layer >= static_cast<int>(vols.size()))
-        throw Error(file + ": segment '" + nm + "' is on layer " + std::to_string(layer) + " of " +
-                    std::to_string(vols.size()));
-      role[r] = {layer, value};
-    }
-    if (!role.count("anterior") || !role.count("posterior")) {
-      throw Error(file + ": the segment names (" + names +
-                  ") name no anterior and posterior leaflet; rename them (e.g. 'anterior leaflet') "
-                  "or give --labels");
-    }
-    ImageVolume merged = vols[0];
-    std::fill(merged.data.begin(), merged.data.end(), 0.0f);
-    const std::map<std::string, float> code = {
-        {"annulus", 1.f}, {"anterior", 2.f}, {"posterior", 3.f}, {"papillary", 4.f}};
-    for (const auto& [r, lv] : role) {
-      const auto& src = vols[static_cast<size_t>(lv.first)].data;
-      for (size_t v = 0; v < src.size(); ++v)
-        if (std::lround(src[v]) == lv.second) merged.data[v] = code.at(r);
-    }
-    detection::SegmentationLabels labels{2, 3, role.count("annulus") ? 1 : 0,
-                                         role.count("papillary") ? 4 : 0, "segment names"};
-    out.push_back({std::move(merged), time.value_or(0.0), file, labels, std::nullopt});
+  if (detection::is_slicer_segmentation(kv) && !explicit_labels) {
+    // Segments found by name; overlapping segments are in layers, read as the 4th axis.
+    detection::NamedSegmentation seg = detection::slicer_segmentation(vols, kv, file);
+    out.push_back({std::move(seg.label_map), time.value_or(0.0), file, seg.labels, std::nullopt});
     return out;
   }
   if (vols.size() > 1 && !sequence) {

@@ -27,6 +27,17 @@ Points vertex_normals(const TriangleMesh& m) {
   return n;
 }
 
+/// Centres of the papillary spheres: each tip moved by the radius away from the atrium, so that
+/// the tip is the sphere's atrial-most point. Empty without both tips or a papillary label.
+std::vector<Eigen::Vector3d> papillary_centres(const ValveFrame& frame, const LabelMapOptions& o) {
+  if (o.labels.papillary == 0 || !frame.observed(Landmark::kAnterolateralPapillaryTip) ||
+      !frame.observed(Landmark::kPosteromedialPapillaryTip))
+    return {};
+  const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
+  return {frame.landmark(Landmark::kAnterolateralPapillaryTip) - o.papillary_radius_mm * atrial,
+          frame.landmark(Landmark::kPosteromedialPapillaryTip) - o.papillary_radius_mm * atrial};
+}
+
 }  // namespace
 
 bool LabelMapOptions::is_valid(std::string* error) const {
@@ -79,12 +90,7 @@ ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& o
   if (o.labels.annulus != 0)
     for (Eigen::Index u = 0; u < frame.annulus.rows(); ++u)
       grow(frame.annulus.row(u).transpose(), o.annulus_radius_mm);
-  if (o.labels.papillary != 0) {
-    const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
-    for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
-      if (frame.observed(l))
-        grow(frame.landmark(l) - o.papillary_radius_mm * atrial, o.papillary_radius_mm);
-  }
+  for (const Eigen::Vector3d& c : papillary_centres(frame, o)) grow(c, o.papillary_radius_mm);
   lo -= Eigen::Vector3d::Constant(o.margin_mm);
   hi += Eigen::Vector3d::Constant(o.margin_mm);
   lo = (lo / o.voxel_mm).array().floor().matrix() * o.voxel_mm;  // on the lattice
@@ -94,25 +100,6 @@ ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& o
   }
   im.origin = im.direction * lo;
   return im;
-}
-
-std::pair<TriangleMesh, TriangleMesh> leaflet_surface_meshes(const LeafletGrid& grid, int ures,
-                                                             int vres) {
-  const LeafletGrid fine = grid.resampled(ures, vres);
-  const TriangleMesh all = fine.triangulate();
-  const Eigen::VectorXi tags = fine.triangle_tags();
-  TriangleMesh leaf[2];
-  for (int k = 0; k < 2; ++k) {
-    leaf[k].V = all.V;
-    std::vector<Eigen::Vector3i> F;
-    for (Eigen::Index t = 0; t < all.F.rows(); ++t)
-      if ((tags[t] == static_cast<int>(LeafletTag::kAnterior)) == (k == 0))
-        F.emplace_back(all.F.row(t).transpose());
-    leaf[k].F.resize(static_cast<Eigen::Index>(F.size()), 3);
-    for (size_t i = 0; i < F.size(); ++i)
-      leaf[k].F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
-  }
-  return {leaf[0], leaf[1]};
 }
 
 ImageVolume union_geometry(const std::vector<ImageVolume>& boxes) {
@@ -155,17 +142,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
     }
   }
   const bool with_annulus = o.labels.annulus != 0;
-  const bool with_papillary = o.labels.papillary != 0 &&
-                              frame.observed(Landmark::kAnterolateralPapillaryTip) &&
-                              frame.observed(Landmark::kPosteromedialPapillaryTip);
-  const Eigen::Vector3d atrial = atrial_direction(frame.annulus);
-  Eigen::Vector3d papillary_centre[2];
-  if (with_papillary) {
-    papillary_centre[0] =
-        frame.landmark(Landmark::kAnterolateralPapillaryTip) - o.papillary_radius_mm * atrial;
-    papillary_centre[1] =
-        frame.landmark(Landmark::kPosteromedialPapillaryTip) - o.papillary_radius_mm * atrial;
-  }
+  const std::vector<Eigen::Vector3d> papillary_centre = papillary_centres(frame, o);
 
   // Geometry: the given one, or an axis-aligned box (in the voxel axes) around everything drawn.
   ImageVolume im = o.geometry ? *o.geometry : label_map_geometry(frame, o);
@@ -178,6 +155,13 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
   std::vector<std::uint8_t> sub(static_cast<std::size_t>(ns[0] * ns[1] * ns[2]), 0);
   auto sub_at = [&](long a, long b, long c) -> std::uint8_t& {
     return sub[static_cast<std::size_t>(a + ns[0] * (b + ns[1] * c))];
+  };
+  // The sub-samples whose index coordinates lie in [bl, bh], clamped to the image.
+  auto sub_range = [&](const Eigen::Vector3d& bl, const Eigen::Vector3d& bh, long* m0, long* m1) {
+    for (int k = 0; k < 3; ++k) {
+      m0[k] = std::max(0L, static_cast<long>(std::ceil((bl[k] + 0.5) * S - 0.5)));
+      m1[k] = std::min(ns[k] - 1, static_cast<long>(std::floor((bh[k] + 0.5) * S - 0.5)));
+    }
   };
   const Eigen::Matrix3d to_index = (im.direction * im.spacing.asDiagonal()).inverse();
   auto idx = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
@@ -196,10 +180,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
     Eigen::Vector3d bl = A.cwiseMin(B).cwiseMin(C).cwiseMin(D),
                     bh = A.cwiseMax(B).cwiseMax(C).cwiseMax(D);
     long m0[3], m1[3];
-    for (int k = 0; k < 3; ++k) {
-      m0[k] = std::max(0L, static_cast<long>(std::ceil((bl[k] + 0.5) * S - 0.5)));
-      m1[k] = std::min(ns[k] - 1, static_cast<long>(std::floor((bh[k] + 0.5) * S - 0.5)));
-    }
+    sub_range(bl, bh, m0, m1);
     for (long c = m0[2]; c <= m1[2]; ++c)
       for (long b = m0[1]; b <= m1[1]; ++b)
         for (long a = m0[0]; a <= m1[0]; ++a) {
@@ -247,10 +228,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
       bh = bh.cwiseMax(q);
     }
     long m0[3], m1[3];
-    for (int k = 0; k < 3; ++k) {
-      m0[k] = std::max(0L, static_cast<long>(std::ceil((bl[k] + 0.5) * S - 0.5)));
-      m1[k] = std::min(ns[k] - 1, static_cast<long>(std::floor((bh[k] + 0.5) * S - 0.5)));
-    }
+    sub_range(bl, bh, m0, m1);
     const Eigen::Matrix3d axes = im.direction * im.spacing.asDiagonal();
     for (long c = m0[2]; c <= m1[2]; ++c)
       for (long b = m0[1]; b <= m1[1]; ++b)
@@ -274,7 +252,7 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& o) {
                   [&](const Eigen::Vector3d& p) { return near_ring(i, p); });
     }
   }
-  if (with_papillary) {
+  {
     const double r = o.papillary_radius_mm;
     for (const auto& c : papillary_centre) {
       paint_shape(c - Eigen::Vector3d::Constant(r), c + Eigen::Vector3d::Constant(r), 4,

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <numbers>
 
 #include <Eigen/Dense>
 
@@ -156,7 +157,7 @@ PatientImport import_patient(std::vector<LabelFrame> frames,
       throw Error("import: the grids of " + frames[f - 1].source + " and " + frames[f].source +
                   " disagree (anterolateral commissure moves " + fmt(jump, 1) +
                   " mm, atrial directions " +
-                  fmt(std::acos(std::clamp(cos_n, -1.0, 1.0)) * 180 / 3.14159265358979, 0) +
+                  fmt(std::acos(std::clamp(cos_n, -1.0, 1.0)) * 180 / std::numbers::pi, 0) +
                   " degrees apart): are they the same patient, in the same image space, with the "
                   "same labels?");
     }
@@ -290,7 +291,7 @@ PatientImport import_patient(std::vector<LabelFrame> frames,
     out.assumed.push_back(
         std::string(name(l)) + ": ASSUMED in every frame, " + fmt(kPapillaryDepthMm, 1) +
         " mm below the annulus plane, " + fmt(kPapillarySeparationMm / 2, 0) +
-        " mm to its side of the commissural line's centre, " + fmt(kPapillaryPosteriorMm, 0) +
+        " mm to its side of the annulus centre along the commissures, " + fmt(kPapillaryPosteriorMm, 0) +
         " mm posterior (published anatomy; no papillary label or markup given)");
   }
   if (!out.assumed.empty()) p.provenance.source += "; ASSUMED: " + seq.assumed_landmarks();

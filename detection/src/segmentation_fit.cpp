@@ -1,6 +1,7 @@
 #include "mvtwin/detection/segmentation_fit.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -105,6 +106,88 @@ PlaneFrame pca_frame(const std::vector<Eigen::Vector3d>& pts) {
   return fr;
 }
 
+/// 26-connected components of the voxels whose code is `c` in a volume of `n` voxels per axis
+/// (x fastest): each voxel's component (-1 elsewhere) and each component's voxel count.
+struct Components {
+  std::vector<int> id;
+  std::vector<long> size;
+};
+
+Components components(const std::vector<std::uint8_t>& code, std::uint8_t c,
+                      const std::array<int, 3>& n) {
+  const long nx = n[0], ny = n[1], nz = n[2];
+  Components out;
+  out.id.assign(code.size(), -1);
+  std::vector<std::size_t> stack;
+  for (std::size_t v = 0; v < code.size(); ++v) {
+    if (code[v] != c || out.id[v] >= 0) continue;
+    const int id = static_cast<int>(out.size.size());
+    long count = 0;
+    stack.push_back(v);
+    out.id[v] = id;
+    while (!stack.empty()) {
+      const std::size_t w = stack.back();
+      stack.pop_back();
+      ++count;
+      const long i = static_cast<long>(w) % nx, j = (static_cast<long>(w) / nx) % ny,
+                 k = static_cast<long>(w) / (nx * ny);
+      for (long dk = -1; dk <= 1; ++dk)
+        for (long dj = -1; dj <= 1; ++dj)
+          for (long di = -1; di <= 1; ++di) {
+            const long a = i + di, b = j + dj, e = k + dk;
+            if (a < 0 || b < 0 || e < 0 || a >= nx || b >= ny || e >= nz) continue;
+            const std::size_t q = static_cast<std::size_t>(a + nx * (b + ny * e));
+            if (code[q] == c && out.id[q] < 0) {
+              out.id[q] = id;
+              stack.push_back(q);
+            }
+          }
+    }
+    out.size.push_back(count);
+  }
+  return out;
+}
+
+/// The landmarks the grid itself carries (docs/valve-model.md): commissures, posterior annulus
+/// mid-point and leaflet tips, marked observed.
+void set_grid_landmarks(const LeafletGrid& g, ValveFrame* f) {
+  auto set = [&](Landmark l, const Eigen::Vector3d& x) {
+    f->landmarks[index(l)] = x;
+    f->landmark_observed[index(l)] = true;
+  };
+  set(Landmark::kAnterolateralCommissure, g.at(0, 0));
+  set(Landmark::kPosteromedialCommissure, g.at(g.ures() / 2, 0));
+  set(Landmark::kPosteriorAnnulusMidpoint, g.sample(0.75, 0.0));
+  set(Landmark::kAnteriorLeafletTip, g.sample(0.25, 1.0));
+  set(Landmark::kPosteriorLeafletTip, g.sample(0.75, 1.0));
+}
+
+/// The faces of `m` that `keep` selects, with only the vertices they use.
+TriangleMesh face_subset(const TriangleMesh& m, const std::vector<bool>& keep) {
+  std::vector<int> id(static_cast<size_t>(m.V.rows()), -1);
+  std::vector<Eigen::Vector3d> V;
+  std::vector<Eigen::Vector3i> F;
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    if (!keep[static_cast<size_t>(f)]) continue;
+    Eigen::Vector3i t;
+    for (int k = 0; k < 3; ++k) {
+      int& x = id[static_cast<size_t>(m.F(f, k))];
+      if (x < 0) {
+        x = static_cast<int>(V.size());
+        V.push_back(m.V.row(m.F(f, k)).transpose());
+      }
+      t[k] = x;
+    }
+    F.push_back(t);
+  }
+  TriangleMesh out;
+  out.V.resize(static_cast<Eigen::Index>(V.size()), 3);
+  for (size_t i = 0; i < V.size(); ++i) out.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
+  out.F.resize(static_cast<Eigen::Index>(F.size()), 3);
+  for (size_t i = 0; i < F.size(); ++i) out.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
+  return out;
+}
+
 }  // namespace
 
 bool SegmentationFitOptions::is_valid(std::string* error) const {
@@ -183,37 +266,9 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
 
   // ---- 2. connected components of each leaflet label (26-neighbourhood) -----------------------
   for (std::uint8_t c : {kAnt, kPost}) {
-    std::vector<int> comp(im.num_voxels(), -1);
-    std::vector<long> sizes;
-    std::vector<std::size_t> stack;
-    for (std::size_t v = 0; v < im.num_voxels(); ++v) {
-      if (code[v] != c || comp[v] >= 0) continue;
-      const int id = static_cast<int>(sizes.size());
-      long n = 0;
-      stack.push_back(v);
-      comp[v] = id;
-      while (!stack.empty()) {
-        const std::size_t w = stack.back();
-        stack.pop_back();
-        ++n;
-        const long i = static_cast<long>(w % nx), j = static_cast<long>((w / nx) % ny),
-                   k = static_cast<long>(w / (nx * ny));
-        for (long dk = -1; dk <= 1; ++dk)
-          for (long dj = -1; dj <= 1; ++dj)
-            for (long di = -1; di <= 1; ++di) {
-              const long a = i + di, b = j + dj, e = k + dk;
-              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) ||
-                  b >= static_cast<long>(ny) || e >= static_cast<long>(nz))
-                continue;
-              const std::size_t q = lin(a, b, e);
-              if (code[q] == c && comp[q] < 0) {
-                comp[q] = id;
-                stack.push_back(q);
-              }
-            }
-      }
-      sizes.push_back(n);
-    }
+    const Components cc = components(code, c, im.size);
+    const std::vector<long>& sizes = cc.size;
+    const std::vector<int>& comp = cc.id;
     const int big = static_cast<int>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
     const char* what = c == kAnt ? "anterior leaflet" : "posterior leaflet";
     const int value = c == kAnt ? L.anterior : L.posterior;
@@ -280,25 +335,12 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   for (const auto& p : leaf_p) leaf_centroid += p;
   leaf_centroid /= static_cast<double>(leaf_p.size());
 
-  auto orient = [&](PlaneFrame* fr, bool tenting) {
+  // The leaflets lie on the ventricular side of the annulus (hanging open or tenting closed).
+  auto orient = [&](PlaneFrame* fr) {
     if (opt.atrial_direction) {
       if (fr->n.dot(*opt.atrial_direction) < 0) fr->n = -fr->n;
-    } else if (tenting) {
-      if (fr->n.dot(leaf_centroid - fr->c) > 0) fr->n = -fr->n;
-    } else {
-      // The leaflets narrow away from the annulus (funnel when open, tent when closed): their
-      // outermost fifth (the attachment) lies above the rest on the atrial side.
-      std::vector<std::pair<double, double>> rh;
-      for (const auto& p : leaf_p) rh.emplace_back(fr->to2d(p).norm(), fr->height(p));
-      std::sort(rh.begin(), rh.end());
-      double outer = 0, all = 0;
-      const size_t from = rh.size() * 4 / 5;
-      for (size_t i = 0; i < rh.size(); ++i) {
-        all += rh[i].second;
-        if (i >= from) outer += rh[i].second;
-      }
-      if (outer / static_cast<double>(rh.size() - from) < all / static_cast<double>(rh.size()))
-        fr->n = -fr->n;
+    } else if (fr->n.dot(leaf_centroid - fr->c) > 0) {
+      fr->n = -fr->n;
     }
     fr->complete();
   };
@@ -337,7 +379,7 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     std::vector<Eigen::Vector3d> rp;
     for (const Voxel& v : ring) rp.push_back(v.p);
     fr = pca_frame(rp);
-    orient(&fr, true);
+    orient(&fr);
     constexpr int kBins = 90;
     std::vector<Eigen::Vector3d> sum(kBins, Eigen::Vector3d::Zero());
     std::vector<int> cnt(kBins, 0);
@@ -397,7 +439,7 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
       // may billow inside the annulus); the rim found from the other side is the free edge
       // or the coaptation zone.
       PlaneFrame start = pca_frame(leaf_p);
-      if (opt.atrial_direction) orient(&start, true);
+      if (opt.atrial_direction) orient(&start);
       auto [f1, r1] = converge(start, &ang, &pts);
       if (!opt.atrial_direction) {
         PlaneFrame flipped = start;
@@ -715,49 +757,21 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
     frame.landmarks[l].setConstant(kNaN);
     frame.landmark_observed[l] = false;
   }
+  set_grid_landmarks(grid, &frame);
+  frame.la_surface = grid;
   auto set = [&](Landmark l, const Eigen::Vector3d& x) {
     frame.landmarks[index(l)] = x;
     frame.landmark_observed[index(l)] = true;
   };
-  set(Landmark::kAnterolateralCommissure, annulus.row(0).transpose());
-  set(Landmark::kPosteromedialCommissure, annulus.row(ures / 2).transpose());
-  set(Landmark::kPosteriorAnnulusMidpoint, grid.sample(0.75, 0.0));
-  set(Landmark::kAnteriorLeafletTip, grid.sample(0.25, 1.0));
-  set(Landmark::kPosteriorLeafletTip, grid.sample(0.75, 1.0));
-  frame.la_surface = grid;
 
   // Papillary tips from a papillary label: the atrial-most point of each of the two largest
   // pieces; the one nearer the anterolateral commissure is the anterolateral tip.
   if (L.papillary != 0 && !pap.empty()) {
-    std::vector<int> comp(pap.size(), -1);
-    std::map<std::size_t, int> where;
+    const Components cc = components(code, kPap, im.size);
+    std::vector<std::vector<int>> pieces(cc.size.size());
     for (size_t i = 0; i < pap.size(); ++i)
-      where[lin(pap[i].i, pap[i].j, pap[i].k)] = static_cast<int>(i);
-    std::vector<std::vector<int>> pieces;
-    for (size_t s = 0; s < pap.size(); ++s) {
-      if (comp[s] >= 0) continue;
-      pieces.emplace_back();
-      std::vector<int> st = {static_cast<int>(s)};
-      comp[s] = static_cast<int>(pieces.size()) - 1;
-      while (!st.empty()) {
-        const int w = st.back();
-        st.pop_back();
-        pieces.back().push_back(w);
-        for (int dk = -1; dk <= 1; ++dk)
-          for (int dj = -1; dj <= 1; ++dj)
-            for (int di = -1; di <= 1; ++di) {
-              const long a = pap[w].i + di, b = pap[w].j + dj, e = pap[w].k + dk;
-              if (a < 0 || b < 0 || e < 0 || a >= static_cast<long>(nx) ||
-                  b >= static_cast<long>(ny) || e >= static_cast<long>(nz))
-                continue;
-              const auto it = where.find(lin(a, b, e));
-              if (it != where.end() && comp[it->second] < 0) {
-                comp[it->second] = comp[s];
-                st.push_back(it->second);
-              }
-            }
-      }
-    }
+      pieces[static_cast<size_t>(cc.id[lin(pap[i].i, pap[i].j, pap[i].k)])].push_back(
+          static_cast<int>(i));
     std::sort(pieces.begin(), pieces.end(),
               [](const auto& x, const auto& y) { return x.size() > y.size(); });
     if (pieces.size() < 2 || pieces[1].size() < 10) {
@@ -898,9 +912,18 @@ FrameFit fit_segmentation_frame(const ImageVolume& im, const std::string& source
   return out;
 }
 
-}  // namespace mvtwin::detection
-
-namespace mvtwin::detection {
+std::pair<TriangleMesh, TriangleMesh> leaflet_surface_meshes(const LeafletGrid& grid, int ures,
+                                                             int vres) {
+  const LeafletGrid fine = grid.resampled(ures, vres);
+  const TriangleMesh all = fine.triangulate();
+  const Eigen::VectorXi tags = fine.triangle_tags();
+  std::vector<bool> anterior(static_cast<size_t>(all.F.rows())), posterior(anterior.size());
+  for (Eigen::Index t = 0; t < all.F.rows(); ++t) {
+    anterior[static_cast<size_t>(t)] = tags[t] == static_cast<int>(LeafletTag::kAnterior);
+    posterior[static_cast<size_t>(t)] = !anterior[static_cast<size_t>(t)];
+  }
+  return {face_subset(all, anterior), face_subset(all, posterior)};
+}
 
 std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m,
                                                            const std::string& source) {
@@ -931,30 +954,10 @@ std::pair<TriangleMesh, TriangleMesh> split_leaflet_meshes(const TriangleMesh& m
         "files (--mesh anterior.stl,posterior.stl) or as two separate pieces of one file");
   }
   auto piece = [&](int root) {
-    TriangleMesh out;
-    std::vector<int> id(static_cast<size_t>(m.V.rows()), -1);
-    std::vector<Eigen::Vector3d> V;
-    std::vector<Eigen::Vector3i> F;
-    for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
-      if (find(m.F(f, 0)) != root) continue;
-      Eigen::Vector3i t;
-      for (int k = 0; k < 3; ++k) {
-        int& x = id[static_cast<size_t>(m.F(f, k))];
-        if (x < 0) {
-          x = static_cast<int>(V.size());
-          V.push_back(m.V.row(m.F(f, k)).transpose());
-        }
-        t[k] = x;
-      }
-      F.push_back(t);
-    }
-    out.V.resize(static_cast<Eigen::Index>(V.size()), 3);
-    for (size_t i = 0; i < V.size(); ++i)
-      out.V.row(static_cast<Eigen::Index>(i)) = V[i].transpose();
-    out.F.resize(static_cast<Eigen::Index>(F.size()), 3);
-    for (size_t i = 0; i < F.size(); ++i)
-      out.F.row(static_cast<Eigen::Index>(i)) = F[i].transpose();
-    return out;
+    std::vector<bool> keep(static_cast<size_t>(m.F.rows()));
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f)
+      keep[static_cast<size_t>(f)] = find(m.F(f, 0)) == root;
+    return face_subset(m, keep);
   };
   // Which is anterior: the anterior leaflet is a tall shield on a third of the annulus, the
   // posterior a long low crescent on the rest (Mansi et al. 2012, Sec. 2.1), so the anterior
@@ -1065,11 +1068,7 @@ FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& pos
       g.points().row(static_cast<Eigen::Index>(v) * U + u) = h.point.transpose();
     }
   fit.frame.annulus = g.points().topRows(U);
-  fit.frame.landmarks[index(Landmark::kAnterolateralCommissure)] = g.at(0, 0);
-  fit.frame.landmarks[index(Landmark::kPosteromedialCommissure)] = g.at(U / 2, 0);
-  fit.frame.landmarks[index(Landmark::kPosteriorAnnulusMidpoint)] = g.sample(0.75, 0.0);
-  fit.frame.landmarks[index(Landmark::kAnteriorLeafletTip)] = g.sample(0.25, 1.0);
-  fit.frame.landmarks[index(Landmark::kPosteriorLeafletTip)] = g.sample(0.75, 1.0);
+  set_grid_landmarks(g, &fit.frame);
   // Fit quality against the meshes themselves.
   TriangleMesh both;
   both.V.resize(anterior.V.rows() + posterior.V.rows(), 3);

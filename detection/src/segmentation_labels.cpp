@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdlib>
 
 #include "mvtwin/core/error.h"
 
@@ -67,6 +69,64 @@ std::string segment_role(std::string_view segment_name) {
   if (has("posterior") || s == "pml" || s == "pl" || s == "pleaflet" || s == "postleaflet")
     return "posterior";
   return "";
+}
+
+bool is_slicer_segmentation(const std::map<std::string, std::string>& fields) {
+  return fields.count("Segment0_LabelValue") || fields.count("Segment0_Name");
+}
+
+NamedSegmentation slicer_segmentation(const std::vector<ImageVolume>& layers,
+                                      const std::map<std::string, std::string>& fields,
+                                      const std::string& source) {
+  if (layers.empty()) throw Error(source + ": the segmentation holds no volume");
+  auto integer = [&](const std::string& key, int fallback) {
+    const auto it = fields.find(key);
+    if (it == fields.end()) return fallback;
+    char* e = nullptr;
+    const long v = std::strtol(it->second.c_str(), &e, 10);
+    if (e == it->second.c_str() || *e != '\0' || v < 0 || v > 1000000)
+      throw Error(source + ": " + key + " is not a valid number ('" + it->second + "')");
+    return static_cast<int>(v);
+  };
+  std::map<std::string, std::pair<int, int>> role;  // role -> (layer, label value)
+  std::string names;
+  for (int s = 0; fields.count("Segment" + std::to_string(s) + "_Name") ||
+                  fields.count("Segment" + std::to_string(s) + "_LabelValue");
+       ++s) {
+    const std::string k = "Segment" + std::to_string(s) + "_";
+    const auto nm_it = fields.find(k + "Name");
+    const std::string nm = nm_it == fields.end() ? "" : nm_it->second;
+    const int value = integer(k + "LabelValue", s + 1);
+    const int layer = integer(k + "Layer", 0);
+    names += (names.empty() ? "'" : ", '") + nm + "'";
+    const std::string r = segment_role(nm);
+    if (r.empty()) continue;
+    if (role.count(r))
+      throw Error(source + ": two segments are the " + r + " (" + names + "); give --labels");
+    if (layer >= static_cast<int>(layers.size()))
+      throw Error(source + ": segment '" + nm + "' is on layer " + std::to_string(layer) + " of " +
+                  std::to_string(layers.size()));
+    role[r] = {layer, value};
+  }
+  if (!role.count("anterior") || !role.count("posterior")) {
+    throw Error(
+        source + ": the segment names (" + (names.empty() ? std::string("none") : names) +
+        ") name no anterior and posterior leaflet; rename them (e.g. 'anterior leaflet') or "
+        "give --labels");
+  }
+  NamedSegmentation out;
+  out.label_map = layers.front();
+  std::fill(out.label_map.data.begin(), out.label_map.data.end(), 0.0f);
+  const std::map<std::string, float> code = {
+      {"annulus", 1.f}, {"anterior", 2.f}, {"posterior", 3.f}, {"papillary", 4.f}};
+  for (const auto& [r, lv] : role) {
+    const auto& src = layers[static_cast<size_t>(lv.first)].data;
+    for (size_t v = 0; v < src.size(); ++v)
+      if (std::lround(src[v]) == lv.second) out.label_map.data[v] = code.at(r);
+  }
+  out.labels = {2, 3, role.count("annulus") ? 1 : 0, role.count("papillary") ? 4 : 0,
+                "segment names"};
+  return out;
 }
 
 }  // namespace mvtwin::detection

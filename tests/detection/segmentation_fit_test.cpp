@@ -366,6 +366,52 @@ TEST(SegmentationFit, LeafletSurfaceMeshes) {
                Error);
 }
 
+// A 3D Slicer segmentation whose segments overlap is stored as layers; each segment is found by
+// its name on its layer, with its own label value.
+TEST(SlicerSegmentation, SegmentsByNameAcrossLayers) {
+  ImageVolume a;
+  a.size = {4, 1, 1};
+  a.data = {1, 2, 0, 1};  // layer 0: "Anterior leaflet" = 1, "aorta" = 2
+  ImageVolume b = a;
+  b.data = {0, 0, 5, 5};  // layer 1: "PML" = 5, overlapping the anterior leaflet at voxel 3
+  const std::map<std::string, std::string> fields = {{"Segment0_Name", "Anterior leaflet"},
+                                                     {"Segment0_LabelValue", "1"},
+                                                     {"Segment0_Layer", "0"},
+                                                     {"Segment1_Name", "aorta"},
+                                                     {"Segment1_LabelValue", "2"},
+                                                     {"Segment1_Layer", "0"},
+                                                     {"Segment2_Name", "PML"},
+                                                     {"Segment2_LabelValue", "5"},
+                                                     {"Segment2_Layer", "1"}};
+  ASSERT_TRUE(is_slicer_segmentation(fields));
+  const NamedSegmentation s = slicer_segmentation({a, b}, fields, "valve.seg.nrrd");
+  EXPECT_EQ(s.labels.anterior, 2);
+  EXPECT_EQ(s.labels.posterior, 3);
+  EXPECT_EQ(s.labels.annulus, 0);
+  EXPECT_EQ(s.label_map.data, (std::vector<float>{2, 0, 3, 3}));  // the aorta is not the valve
+  auto expect = [&](std::map<std::string, std::string> f, const std::string& part) {
+    try {
+      slicer_segmentation({a, b}, f, "bad.seg.nrrd");
+      FAIL() << "expected an error with " << part;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.seg.nrrd: " + part), std::string::npos) << e.what();
+    }
+  };
+  auto f = fields;
+  f["Segment2_Name"] = "mitral annulus";
+  expect(f, "the segment names");
+  f = fields;
+  f["Segment1_Name"] = "AML";
+  expect(f, "two segments are the anterior");
+  f = fields;
+  f["Segment2_Layer"] = "7";
+  expect(f, "segment 'PML' is on layer 7 of 2");
+  f = fields;
+  f["Segment2_LabelValue"] = "five";
+  expect(f, "Segment2_LabelValue is not a valid number");
+  EXPECT_FALSE(is_slicer_segmentation({{"space", "RAS"}}));
+}
+
 TEST(PatientImport, FramesPhasesPapillaryLabelAndAssumptions) {
   const Patient& p = closed_patient(1);
   const ValveSequence& s = p.sequence;

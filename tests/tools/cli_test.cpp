@@ -14,7 +14,7 @@
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/surface_mesh_io.h"
-#include "mvtwin/detection/label_map.h"
+#include "mvtwin/detection/segmentation_fit.h"
 
 #include "mvtwin/core/patient_file.h"
 

@@ -1,7 +1,6 @@
 #pragma once
 #include <cstdint>
 #include <optional>
-#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -54,12 +53,6 @@ ImageVolume valve_label_map(const ValveFrame& frame, const LabelMapOptions& opti
 /// everything drawn, its origin on the lattice of `voxel_mm` so that boxes of several frames
 /// share voxel centres.
 ImageVolume label_map_geometry(const ValveFrame& frame, const LabelMapOptions& options);
-
-/// The grid's surface as two leaflet meshes (anterior, posterior), resampled to ures x vres
-/// first: what a tool exporting leaflet surfaces gives (each with its own copy of the shared
-/// commissure columns).
-std::pair<TriangleMesh, TriangleMesh> leaflet_surface_meshes(const LeafletGrid& grid, int ures,
-                                                             int vres);
 
 /// The smallest geometry holding every one of `boxes` (same spacing and axes).
 ImageVolume union_geometry(const std::vector<ImageVolume>& boxes);

@@ -1,6 +1,7 @@
 #pragma once
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -80,6 +81,12 @@ namespace mvtwin::detection {
 FrameFit fit_surface_frame(const TriangleMesh& anterior, const TriangleMesh& posterior,
                            const std::string& source, const SegmentationFitOptions& options = {},
                            double voxel_mm = 0.4);
+
+/// The grid's surface as two leaflet meshes (anterior, posterior), resampled to ures x vres
+/// first: what a tool exporting leaflet surfaces gives, each mesh with its own copy of the
+/// shared commissure columns and only the vertices it uses.
+std::pair<TriangleMesh, TriangleMesh> leaflet_surface_meshes(const LeafletGrid& grid, int ures,
+                                                             int vres);
 
 /// Splits one mesh holding both leaflets into its two largest connected pieces, anterior first:
 /// the anterior leaflet is the rounder piece, area / boundary length^2 (a tall shield on a third

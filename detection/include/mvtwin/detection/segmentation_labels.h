@@ -1,7 +1,10 @@
 #pragma once
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "mvtwin/core/image_volume.h"
 
 namespace mvtwin::detection {
 
@@ -36,5 +39,25 @@ std::vector<std::string> segmentation_convention_names();
 /// ignored; "anterior leaflet", "AML", "A leaflet", "mitral annulus", "papillary muscles",
 /// "PPM" and the like are recognized.
 std::string segment_role(std::string_view segment_name);
+
+/// True when NRRD header fields are those of a 3D Slicer segmentation (SegmentN_ keys).
+bool is_slicer_segmentation(const std::map<std::string, std::string>& fields);
+
+/// A 3D Slicer segmentation (.seg.nrrd) as one label map.
+struct NamedSegmentation {
+  /// In the mvtool values (1 annulus, 2 anterior, 3 posterior, 4 papillary muscles).
+  ImageVolume label_map;
+  /// Which of them the segmentation has.
+  SegmentationLabels labels;
+};
+
+/// Merges the segments of a Slicer segmentation: `layers` are its volumes (one, or one per
+/// layer when segments overlap), `fields` its header's SegmentN_Name / SegmentN_LabelValue /
+/// SegmentN_Layer. Segments are found by name (segment_role). Throws mvtwin::Error naming
+/// `source` when no anterior and posterior leaflet are named, two segments have one role, or a
+/// number or layer is invalid.
+NamedSegmentation slicer_segmentation(const std::vector<ImageVolume>& layers,
+                                      const std::map<std::string, std::string>& fields,
+                                      const std::string& source);
 
 }  // namespace mvtwin::detection
