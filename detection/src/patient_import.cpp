@@ -288,11 +288,12 @@ PatientImport import_patient(std::vector<LabelFrame> frames,
       fr.landmark_observed[index(l)] = true;
       fr.landmark_assumed[index(l)] = true;
     }
-    out.assumed.push_back(
-        std::string(name(l)) + ": ASSUMED in every frame, " + fmt(kPapillaryDepthMm, 1) +
-        " mm below the annulus plane, " + fmt(kPapillarySeparationMm / 2, 0) +
-        " mm to its side of the annulus centre along the commissures, " + fmt(kPapillaryPosteriorMm, 0) +
-        " mm posterior (published anatomy; no papillary label or markup given)");
+    out.assumed.push_back(std::string(name(l)) + ": ASSUMED in every frame, " +
+                          fmt(kPapillaryDepthMm, 1) + " mm below the annulus plane, " +
+                          fmt(kPapillarySeparationMm / 2, 0) +
+                          " mm to its side of the annulus centre along the commissures, " +
+                          fmt(kPapillaryPosteriorMm, 0) +
+                          " mm posterior (published anatomy; no papillary label or markup given)");
   }
   if (!out.assumed.empty()) p.provenance.source += "; ASSUMED: " + seq.assumed_landmarks();
   seq.validate(p.id.c_str());
