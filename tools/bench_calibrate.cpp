@@ -167,9 +167,7 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
                       {"created_utc", utc_now_iso8601()}}}};
       };
       if (!cache->empty()) fs::create_directories(*cache);
-      auto patient_seed = [&](int i) {
-        return static_cast<std::uint64_t>(*seed) * 1000 + static_cast<std::uint64_t>(i) + 1;
-      };
+      auto patient_seed = [&](int i) { return cohort_member(*seed, i).seed; };
       // The cache key holds the observation model and the noise, so that a changed --observe-set
       // or --noise never reuses an observation made otherwise.
       std::string description = "noise=" + std::to_string(*noise);
@@ -182,9 +180,7 @@ void register_bench_calibrate(CLI::App& bench, Context& ctx) {
       };
       // A patient's observed closure (the observation model plus noise); throws mvtwin::Error.
       auto observe_patient = [&](int i) {
-        VirtualPatientOptions po;
-        po.pathology = static_cast<Pathology>(i % kNumPathologies);
-        Patient p = make_virtual_patient(patient_seed(i), po);
+        Patient p = make_cohort_patient(*seed, i);
         forward::simulate_observed_closure(&p, vo);
         return p;
       };

@@ -81,8 +81,7 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
       vo.noise_mm = 0.0;
       std::vector<Patient> patients;
       for (int i = 0; i < *n; ++i) {
-        Patient p = make_virtual_patient(static_cast<std::uint64_t>(*seed) * 1000 + 1 +
-                                         static_cast<std::uint64_t>(i));
+        Patient p = make_cohort_patient(*seed, i);
         forward::simulate_observed_closure(&p, vo);
         std::cout << "patient " << i + 1 << "/" << *n << ": " << p.id << " [SYNTHETIC] simulated\n"
                   << std::flush;

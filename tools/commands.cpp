@@ -50,14 +50,6 @@ void refuse_overwrite(const fs::path& p, bool force) {
   }
 }
 
-/// Seed of patient i of a cohort: splitmix64 of (seed, i), so cohorts never share patients.
-std::uint64_t cohort_seed(std::uint64_t seed, int i) {
-  std::uint64_t z = seed + 0x9E3779B97F4A7C15ull * static_cast<std::uint64_t>(i + 1);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return (z ^ (z >> 31)) & 0x7FFFFFFFFFFFFFFFull;  // positive when stored as int64
-}
-
 /// The landmarks estimated from anatomy rather than observed: every report that uses them
 /// says so, because the papillary tips drive the closure.
 void print_assumed(const Patient& p, std::ostream& os) {
@@ -270,6 +262,8 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto* cmd = app.add_subcommand("cohort", "Make many virtual patients (resumable)");
     cmd->footer(
         "Example:\n  mvtwin cohort --n 25 --seed 2026 --out cohort/\n"
+        "Patient i has the seed and pathology every command gives it (the pathologies in turn),\n"
+        "so mvtwin study cohort --seed 2026 draws the same patients.\n"
         "Existing valid patient files are kept (the run resumes); a patient that fails is\n"
         "reported in cohort.json and the others go on.");
     auto n = std::make_shared<int>(25);
@@ -298,7 +292,7 @@ void register_commands(CLI::App& app, Context& ctx) {
           char name[32];
           std::snprintf(name, sizeof name, "patient_%04d.h5", i);
           const fs::path path = fs::path(*out) / name;
-          const std::uint64_t s = cohort_seed(*seed, i);
+          const std::uint64_t s = cohort_member(*seed, i).seed;
           nlohmann::json entry{{"file", name}, {"seed", s}};
           try {
             bool reuse = false;
@@ -319,8 +313,7 @@ void register_commands(CLI::App& app, Context& ctx) {
             } else {
               VirtualPatientOptions o = *opts;
               o.command = ctx.command_line + "  [patient " + std::to_string(i) + "]";
-              o.id = "virtual-" + std::to_string(*seed) + "-" + std::to_string(i);
-              p = make_virtual_patient(s, o);
+              p = make_cohort_patient(*seed, i, o);
               write_patient(path, p);
               ++made;
               entry["status"] = "made";

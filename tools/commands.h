@@ -38,6 +38,8 @@ void register_clip(CLI::App& app, Context& ctx);
 void register_detect(CLI::App& app, Context& ctx);
 /// mvtwin import (tools/import.cpp).
 void register_import(CLI::App& app, Context& ctx);
+/// mvtwin study cohort | ... (tools/study.cpp).
+void register_study(CLI::App& app, Context& ctx);
 /// mvtwin render-tee (tools/render_tee.cpp).
 void register_render_tee(CLI::App& app, Context& ctx);
 /// Reads a patient file; with `use_detected` its detected sequence (mvtwin detect) replaces the

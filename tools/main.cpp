@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   mvtwin::tools::register_render_tee(app, ctx);
   mvtwin::tools::register_detect(app, ctx);
   mvtwin::tools::register_import(app, ctx);
+  mvtwin::tools::register_study(app, ctx);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

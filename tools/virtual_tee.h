@@ -13,6 +13,7 @@
 #include "mvtwin/core/patient.h"
 #include "mvtwin/detection/tee_renderer.h"
 #include "mvtwin/detection/valve_detector.h"
+#include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::tools {
@@ -25,10 +26,11 @@ struct VirtualTeeTruth {
   std::string key;  ///< names cached truth files by the model that made them
 };
 
-/// Seed of patient i (0-based) of the virtual cohort `cohort_seed`: cohort_seed x 1000 + 1 + i,
-/// so that train-detector --virtual and bench detect draw the same patients (and share caches).
+/// Seed of patient i (0-based) of the virtual cohort `cohort_seed`: the rule of every command
+/// (mvtwin::cohort_member), so that train-detector --virtual and bench detect draw the same
+/// patients (and share caches).
 inline std::uint64_t virtual_cohort_seed(std::uint64_t cohort_seed, int i) {
-  return cohort_seed * 1000 + static_cast<std::uint64_t>(i) + 1;
+  return cohort_member(cohort_seed, i).seed;
 }
 
 /// Virtual patient `seed` (pathology `i % kNumPathologies`) with its closing frames simulated.

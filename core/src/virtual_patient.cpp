@@ -489,4 +489,23 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   return p;
 }
 
+CohortMember cohort_member(std::uint64_t cohort_seed, int index) {
+  if (index < 0) throw Error("cohort_member: negative patient index " + std::to_string(index));
+  std::uint64_t z = cohort_seed + 0x9E3779B97F4A7C15ull * static_cast<std::uint64_t>(index + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  CohortMember m;
+  m.seed = (z ^ (z >> 31)) & 0x7FFFFFFFFFFFFFFFull;  // positive when stored as int64
+  m.pathology = static_cast<Pathology>(index % kNumPathologies);
+  m.id = "virtual-" + std::to_string(cohort_seed) + "-" + std::to_string(index);
+  return m;
+}
+
+Patient make_cohort_patient(std::uint64_t cohort_seed, int index, VirtualPatientOptions options) {
+  const CohortMember m = cohort_member(cohort_seed, index);
+  options.pathology = m.pathology;
+  options.id = m.id;
+  return make_virtual_patient(m.seed, options);
+}
+
 }  // namespace mvtwin

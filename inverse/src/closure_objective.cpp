@@ -80,6 +80,45 @@ forward::ClosureResult ClosureObjective::simulate(const Eigen::VectorXd& x) cons
   return forward::simulate_closure(patient_->sequence, space_.apply(x), o);
 }
 
+Evaluation ClosureObjective::compare(const forward::ClosureResult& r) const {
+  Evaluation e;
+  try {
+    if (r.summary.status != forward::ClosureStatus::kConverged) {
+      e.reason = r.summary.reason;
+    } else {
+      e.residuals.resize(num_residuals_);
+      int k = 0;
+      const ValveSequence& seq = patient_->sequence;
+      for (size_t i = 0; i < frames_.size(); ++i) {
+        const double t = seq.frames[frames_[i]].time_s;
+        const forward::ClosureSample* s = &r.samples.back();
+        if (frames_[i] != seq.first_closed) {
+          for (const auto& c : r.samples)
+            if (std::abs(c.observed_time_s - t) < std::abs(s->observed_time_s - t)) s = &c;
+        }
+        const Points sim = leaflet_points(s->la_surface);
+        if (!sim.allFinite()) throw Error("non-finite simulated surface");
+        const std::vector<double> a = point_to_mesh_distances(observed_points_[i], s->la_surface.triangulate());
+        const std::vector<double> b = point_to_mesh_distances(sim, observed_meshes_[i]);
+        if (k + static_cast<int>(a.size() + b.size()) > num_residuals_)
+          throw Error("objective: the simulation's grid differs from the objective's");
+        for (double d : a) e.residuals[k++] = d;
+        for (double d : b) e.residuals[k++] = d;
+      }
+      if (k != num_residuals_) throw Error("objective: residual count changed");
+      e.mean_mm = e.residuals.mean();
+      e.ok = std::isfinite(e.mean_mm);
+      if (!e.ok) e.reason = "non-finite distances";
+    }
+  } catch (const std::exception& ex) {
+    e.ok = false;
+    e.reason = ex.what();
+  }
+  if (!e.ok) e.residuals.resize(0);
+  e.wall_s = r.summary.wall_s;
+  return e;
+}
+
 Evaluation ClosureObjective::compute(const Eigen::VectorXd& x) const {
   Evaluation e;
   const auto t0 = std::chrono::steady_clock::now();
@@ -88,39 +127,13 @@ Evaluation ClosureObjective::compute(const Eigen::VectorXd& x) const {
     if (options_.force_failure && options_.force_failure(par)) {
       e.reason = "forced failure (test)";
     } else {
-      const forward::ClosureResult r =
-          forward::simulate_closure(patient_->sequence, par, simulation_options());
-      if (r.summary.status != forward::ClosureStatus::kConverged) {
-        e.reason = r.summary.reason;
-      } else {
-        e.residuals.resize(num_residuals_);
-        int k = 0;
-        const ValveSequence& seq = patient_->sequence;
-        for (size_t i = 0; i < frames_.size(); ++i) {
-          const double t = seq.frames[frames_[i]].time_s;
-          const forward::ClosureSample* s = &r.samples.back();
-          if (frames_[i] != seq.first_closed) {
-            for (const auto& c : r.samples)
-              if (std::abs(c.observed_time_s - t) < std::abs(s->observed_time_s - t)) s = &c;
-          }
-          const Points sim = leaflet_points(s->la_surface);
-          if (!sim.allFinite()) throw Error("non-finite simulated surface");
-          const std::vector<double> a = point_to_mesh_distances(observed_points_[i], s->la_surface.triangulate());
-          const std::vector<double> b = point_to_mesh_distances(sim, observed_meshes_[i]);
-          for (double d : a) e.residuals[k++] = d;
-          for (double d : b) e.residuals[k++] = d;
-        }
-        if (k != num_residuals_) throw Error("objective: residual count changed");
-        e.mean_mm = e.residuals.mean();
-        e.ok = std::isfinite(e.mean_mm);
-        if (!e.ok) e.reason = "non-finite distances";
-      }
+      e = compare(forward::simulate_closure(patient_->sequence, par, simulation_options()));
     }
   } catch (const std::exception& ex) {
     e.ok = false;
     e.reason = ex.what();
+    e.residuals.resize(0);
   }
-  if (!e.ok) e.residuals.resize(0);
   e.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return e;
 }

@@ -34,4 +34,17 @@ struct VirtualPatientOptions {
 /// a finer model than the one calibrated (issue 3), never from this geometric generator.
 Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& options = {});
 
+/// The one rule by which every command draws patient `index` (from 0) of a virtual cohort:
+/// its seed is splitmix64 of (cohort_seed, index), so cohorts of different seeds never share
+/// patients, and its pathology is the index's turn in the Pathology list (normal, elongated
+/// chordae, ruptured chordae, ...), so that any 5 consecutive patients hold every class.
+struct CohortMember {
+  std::uint64_t seed = 0;
+  Pathology pathology = Pathology::kNormal;
+  std::string id;  ///< "virtual-<cohort seed>-<index>"
+};
+CohortMember cohort_member(std::uint64_t cohort_seed, int index);
+/// make_virtual_patient of cohort_member(cohort_seed, index) with its pathology and id.
+Patient make_cohort_patient(std::uint64_t cohort_seed, int index, VirtualPatientOptions options = {});
+
 }  // namespace mvtwin

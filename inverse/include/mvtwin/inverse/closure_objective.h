@@ -62,6 +62,10 @@ class ClosureObjective {
 
   /// The simulated closure at x (not cached), e.g. for the before/after files.
   forward::ClosureResult simulate(const Eigen::VectorXd& x) const;
+  /// The distances of a closure simulated elsewhere (e.g. by simulate(x)) to the observation,
+  /// as evaluate would give them; not counted and not cached. A failed simulation gives ok =
+  /// false and its reason.
+  Evaluation compare(const forward::ClosureResult& result) const;
 
  private:
   Evaluation compute(const Eigen::VectorXd& x) const;

@@ -1,0 +1,100 @@
+#pragma once
+// The cohort study (the paper's Tables 2 and 3 at any size): every patient simulated with the
+// default parameters (point-to-mesh error, closure rating), then calibrated (error before and
+// after, fitted parameters against the truth where there is one), summarized per pathology.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "mvtwin/core/valve_parameters.h"
+#include "mvtwin/forward/closure_simulation.h"
+#include "mvtwin/forward/virtual_closure.h"
+#include "mvtwin/studies/study_folder.h"
+#include "mvtwin/studies/work_pool.h"
+
+namespace mvtwin::studies {
+
+/// The automatic closure rating that stands in for the paper's visual one, from the simulated
+/// closed valve seen from the atrium: satisfactory when the orifice left is at most
+/// `satisfactory_orifice_mm2` and the leaflets coapt over at least `satisfactory_coaptation_mm`
+/// (median over the anterior columns); unsatisfactory when the orifice exceeds
+/// `unsatisfactory_orifice_mm2` or fewer than half the columns coapt; passable otherwise.
+struct ClosureRating {
+  double satisfactory_orifice_mm2 = 5.0;
+  double satisfactory_coaptation_mm = 3.0;
+  double unsatisfactory_orifice_mm2 = 20.0;
+  std::string rate(double orifice_mm2, double coaptation_mm, double coapting_fraction) const;
+  bool is_valid(std::string* error) const;
+};
+
+struct CohortStudyOptions {
+  std::filesystem::path out;  ///< the study folder (resumable)
+  /// Virtual patients: `patients` of the cohort `seed` (mvtwin::cohort_member's rule).
+  int patients = 25;
+  std::uint64_t seed = 2026;
+  /// Or every *.h5 patient file in this folder (real ones included), in name order.
+  std::filesystem::path folder;
+  /// Where virtual patients' observed closures are kept (default OUT/observed); shared by
+  /// studies and runs, named by the observation model.
+  std::filesystem::path cache;
+  forward::VirtualClosureOptions observation;  ///< how virtual patients are observed
+  forward::ClosureOptions model;               ///< the calibration model
+  ValveParameters defaults;                    ///< the default parameters (the start)
+  bool calibrate = true;
+  std::string fit = "restlength,stiffness,pressure";
+  std::string method = "bobyqa";
+  int max_simulations = 50;
+  /// Simulations at once in each process (patients in the default stage, candidates in the
+  /// calibration stage).
+  int jobs = 2;
+  ClosureRating rating;
+  std::string command;  ///< recorded in every result
+  StudyProgress progress;
+
+  bool is_valid(std::string* error) const;
+  /// The test size: 5 patients (one per pathology), default parameters only, on a coarse
+  /// model (16 x 12, dt 0.02 s) observed by a finer one (20 x 16, dt 0.01 s).
+  static CohortStudyOptions quick();
+  /// What decides the numbers (the study folder's configuration).
+  nlohmann::json config() const;
+};
+
+/// One patient's results (the entries of OUT/study.json's `patients`).
+struct CohortPatient {
+  int index = 0;
+  std::string id, pathology, file;
+  bool synthetic = false;
+  std::string status = "ok";  ///< "ok", or "failed" with `reason`
+  std::string reason;
+  double observe_s = 0;       ///< the observed closure's simulation (0 when cached or real)
+  // default parameters
+  double error_default_mm = 0, error_default_sd_mm = 0, error_default_p95_mm = 0;
+  double orifice_mm2 = 0, coaptation_mm = 0, coapting_fraction = 0;
+  std::string rating;
+  double default_s = 0;
+  // calibration (NaN when not calibrated)
+  double error_calibrated_mm = 0;
+  double calibrate_s = 0;
+  int simulations = 0;
+  nlohmann::json fitted, truth;  ///< name -> value (truth only for virtual patients)
+  nlohmann::json to_json() const;
+  static CohortPatient from_json(const nlohmann::json& j);
+};
+
+struct CohortStudyResult {
+  std::vector<CohortPatient> patients;
+  nlohmann::json summary;  ///< overall, per pathology and per rating
+  std::string workers;     ///< "1 process" / "2 MPI ranks"
+  double wall_s = 0;
+};
+
+/// Runs (or resumes) the study over the pool's processes and, on the root, writes
+/// OUT/study.json, OUT/study.h5, the plots and OUT/report.md / report.html. Every process
+/// returns the same result. Throws mvtwin::Error for invalid options or an OUT holding another
+/// study; a patient that fails is recorded with its reason and the study goes on.
+CohortStudyResult run_cohort_study(const CohortStudyOptions& options, WorkPool& pool);
+
+}  // namespace mvtwin::studies

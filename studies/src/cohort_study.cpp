@@ -1,0 +1,693 @@
+#include "mvtwin/studies/cohort_study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <atomic>
+#include <map>
+#include <mutex>
+
+#include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/closure_measures.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
+#include "mvtwin/core/table_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/inverse/calibration.h"
+#include "mvtwin/inverse/closure_objective.h"
+#include "mvtwin/studies/plot.h"
+#include "mvtwin/studies/report.h"
+
+namespace mvtwin::studies {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// FNV-1a of a description, 8 hex digits: names cached observations by the model that made them.
+std::string key_of(const std::string& s) {
+  std::uint32_t h = 2166136261u;
+  for (unsigned char c : s) h = (h ^ c) * 16777619u;
+  char out[16];
+  std::snprintf(out, sizeof out, "%08x", h);
+  return out;
+}
+
+json describe(const forward::ClosureOptions& o) {
+  json j = json::object();
+  for (const auto& [k, v] : forward::describe_options(o)) j[k] = v;
+  return j;
+}
+
+json parameters_json(const ValveParameters& p) {
+  json j = json::object();
+  p.for_each([&](const std::string& name, double v, const char*) { j[name] = v; });
+  return j;
+}
+
+double num(const json& j, const char* key) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
+}
+
+/// One patient of the study: where its data come from.
+struct Entry {
+  std::string name;  ///< record name: patient_0003, or the file's stem
+  std::string id, pathology;
+  fs::path file;     ///< the observed patient file (cached observation or the given file)
+  bool is_virtual = false;
+};
+
+struct Stats {
+  int n = 0;
+  double mean = kNaN, sd = kNaN;
+};
+Stats stats(const std::vector<double>& v) {
+  Stats s;
+  double sum = 0, sq = 0;
+  for (double x : v)
+    if (std::isfinite(x)) {
+      ++s.n;
+      sum += x;
+      sq += x * x;
+    }
+  if (s.n == 0) return s;
+  s.mean = sum / s.n;
+  s.sd = s.n > 1 ? std::sqrt(std::max(0.0, (sq - s.n * s.mean * s.mean) / (s.n - 1))) : 0.0;
+  return s;
+}
+json stats_json(const std::vector<double>& v) {
+  const Stats s = stats(v);
+  return {{"n", s.n}, {"mean", s.n ? json(s.mean) : json(nullptr)}, {"sd", s.n ? json(s.sd) : json(nullptr)}};
+}
+
+const char* kRatings[] = {"satisfactory", "passable", "unsatisfactory"};
+
+}  // namespace
+
+// ---- rating and options ----------------------------------------------------------------------
+
+std::string ClosureRating::rate(double orifice, double coaptation, double fraction) const {
+  if (!std::isfinite(orifice)) return "unsatisfactory";
+  if (orifice > unsatisfactory_orifice_mm2 || fraction < 0.5) return "unsatisfactory";
+  if (orifice <= satisfactory_orifice_mm2 && coaptation >= satisfactory_coaptation_mm)
+    return "satisfactory";
+  return "passable";
+}
+
+bool ClosureRating::is_valid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(satisfactory_orifice_mm2 >= 0) || !(unsatisfactory_orifice_mm2 > satisfactory_orifice_mm2))
+    return fail("rating: need 0 <= satisfactory orifice < unsatisfactory orifice (mm^2)");
+  if (!(satisfactory_coaptation_mm >= 0)) return fail("rating: coaptation threshold must be >= 0 mm");
+  return true;
+}
+
+bool CohortStudyOptions::is_valid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (out.empty()) return fail("cohort study: no output folder (--out)");
+  if (folder.empty() && (patients < 1 || patients > 100000))
+    return fail("cohort study: patients must be 1 to 100000, not " + std::to_string(patients));
+  if (!folder.empty() && !fs::is_directory(folder))
+    return fail("cohort study: " + folder.string() + " is not a folder");
+  if (jobs < 1 || jobs > 256) return fail("cohort study: jobs must be 1 to 256");
+  if (max_simulations < 1) return fail("cohort study: max_simulations must be >= 1");
+  std::string e;
+  if (!model.is_valid(&e)) return fail("cohort study: calibration model: " + e);
+  if (!observation.simulation.is_valid(&e)) return fail("cohort study: observation model: " + e);
+  if (!(observation.noise_mm >= 0)) return fail("cohort study: observation noise must be >= 0 mm");
+  if (!rating.is_valid(&e)) return fail("cohort study: " + e);
+  if (method != "bobyqa" && method != "cobyla" && method != "neldermead" && method != "sbplx" &&
+      method != "ceres")
+    return fail("cohort study: unknown method '" + method +
+                "' (bobyqa, cobyla, neldermead, sbplx, ceres)");
+  return true;
+}
+
+CohortStudyOptions CohortStudyOptions::quick() {
+  CohortStudyOptions o;
+  o.patients = 5;
+  o.calibrate = false;
+  o.model.model.ures = 16;
+  o.model.model.vres = 12;
+  o.model.dt = 0.02;
+  o.observation.simulation = forward::ClosureOptions{};
+  o.observation.simulation.model.ures = 20;
+  o.observation.simulation.model.vres = 16;
+  o.observation.simulation.dt = 0.01;
+  return o;
+}
+
+json CohortStudyOptions::config() const {
+  json c{{"calibration_model", describe(model)},
+         {"defaults", parameters_json(defaults)},
+         {"calibrate", calibrate},
+         {"rating",
+          {{"satisfactory_orifice_mm2", rating.satisfactory_orifice_mm2},
+           {"satisfactory_coaptation_mm", rating.satisfactory_coaptation_mm},
+           {"unsatisfactory_orifice_mm2", rating.unsatisfactory_orifice_mm2}}}};
+  if (calibrate) c.update({{"fit", fit}, {"method", method}, {"max_simulations", max_simulations}});
+  if (folder.empty()) {
+    c.update({{"patients", patients},
+              {"seed", seed},
+              {"observation_model", describe(observation.simulation)},
+              {"observation_noise_mm", observation.noise_mm}});
+  } else {
+    c["folder"] = fs::absolute(folder).lexically_normal().string();
+  }
+  return c;
+}
+
+// ---- a patient's record ------------------------------------------------------------------------
+
+json CohortPatient::to_json() const {
+  auto n = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  json j{{"index", index},
+         {"id", id},
+         {"pathology", pathology},
+         {"file", file},
+         {"synthetic", synthetic},
+         {"status", status},
+         {"error_default_mm", status == "ok" ? n(error_default_mm) : json(nullptr)},
+         {"error_default_sd_mm", status == "ok" ? n(error_default_sd_mm) : json(nullptr)},
+         {"error_default_p95_mm", status == "ok" ? n(error_default_p95_mm) : json(nullptr)},
+         {"orifice_mm2", status == "ok" ? n(orifice_mm2) : json(nullptr)},
+         {"coaptation_mm", status == "ok" ? n(coaptation_mm) : json(nullptr)},
+         {"coapting_fraction", status == "ok" ? n(coapting_fraction) : json(nullptr)},
+         {"rating", rating.empty() ? json(nullptr) : json(rating)},
+         {"error_calibrated_mm", n(error_calibrated_mm)},
+         {"simulations", simulations},
+         {"fitted", fitted.is_null() ? json::object() : fitted},
+         {"truth", truth.is_null() ? json::object() : truth},
+         {"observe_s", observe_s},
+         {"default_s", default_s},
+         {"calibrate_s", calibrate_s}};
+  if (!reason.empty()) j["reason"] = reason;
+  return j;
+}
+
+CohortPatient CohortPatient::from_json(const json& j) {
+  CohortPatient p;
+  p.index = j.value("index", 0);
+  p.id = j.value("id", "");
+  p.pathology = j.value("pathology", "");
+  p.file = j.value("file", "");
+  p.synthetic = j.value("synthetic", false);
+  p.status = j.value("status", "failed");
+  p.reason = j.value("reason", "");
+  p.error_default_mm = num(j, "error_default_mm");
+  p.error_default_sd_mm = num(j, "error_default_sd_mm");
+  p.error_default_p95_mm = num(j, "error_default_p95_mm");
+  p.orifice_mm2 = num(j, "orifice_mm2");
+  p.coaptation_mm = num(j, "coaptation_mm");
+  p.coapting_fraction = num(j, "coapting_fraction");
+  p.rating = j.contains("rating") && j["rating"].is_string() ? j["rating"].get<std::string>() : "";
+  p.error_calibrated_mm = num(j, "error_calibrated_mm");
+  p.simulations = j.value("simulations", 0);
+  p.fitted = j.value("fitted", json::object());
+  p.truth = j.value("truth", json::object());
+  p.observe_s = j.value("observe_s", 0.0);
+  p.default_s = j.value("default_s", 0.0);
+  p.calibrate_s = j.value("calibrate_s", 0.0);
+  return p;
+}
+
+// ---- the study ---------------------------------------------------------------------------------
+
+namespace {
+
+void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, const StudyFolder& folder);
+
+}  // namespace
+
+CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) {
+  std::string err;
+  if (!o.is_valid(&err)) throw Error(err);
+  const auto t_start = std::chrono::steady_clock::now();
+  const json config = o.config();
+  std::unique_ptr<StudyFolder> folder;
+  if (pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "cohort", config, true);
+  pool.barrier();
+  if (!pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "cohort", config, false);
+
+  std::mutex progress_mutex;
+  auto report = [&](const std::string& stage, int done, int total, const std::string& msg) {
+    if (!o.progress) return;
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    o.progress({stage, done, total, msg});
+  };
+
+  // The patients.
+  std::vector<Entry> entries;
+  if (o.folder.empty()) {
+    const fs::path cache = o.cache.empty() ? o.out / "observed" : o.cache;
+    if (pool.is_root()) create_output_directory(cache);
+    std::string description = "noise=" + std::to_string(o.observation.noise_mm);
+    for (const auto& [k, v] : forward::describe_options(o.observation.simulation))
+      description += " " + k + "=" + v;
+    const std::string key = key_of(description);
+    for (int i = 0; i < o.patients; ++i) {
+      const CohortMember m = cohort_member(o.seed, i);
+      char name[32];
+      std::snprintf(name, sizeof name, "patient_%04d", i);
+      entries.push_back({name, m.id, std::string(pathology_name(m.pathology)),
+                         cache / ("observed_" + m.id + "_" + key + ".h5"), true});
+    }
+  } else {
+    std::vector<fs::path> files;
+    for (const auto& f : fs::directory_iterator(o.folder))
+      if (f.is_regular_file() && f.path().extension() == ".h5") files.push_back(f.path());
+    std::sort(files.begin(), files.end());
+    if (files.empty()) throw Error(o.folder.string() + ": no patient files (*.h5)");
+    for (const auto& f : files) entries.push_back({f.stem().string(), "", "", f, false});
+  }
+  pool.barrier();
+  const int n = static_cast<int>(entries.size());
+  std::atomic<int> done{0};
+
+  // Stage 1: the virtual patients' observed closures (cached; the one-time cost).
+  std::vector<std::string> observe_failed(entries.size());
+  std::vector<double> observe_s(entries.size(), 0.0);
+  if (o.folder.empty()) {
+    const auto out = pool.map(n, o.jobs, [&](int i) -> std::string {
+      const Entry& e = entries[static_cast<std::size_t>(i)];
+      json r{{"s", 0.0}};
+      try {
+        bool have = false;
+        {
+          std::lock_guard<std::mutex> lock(hdf5_mutex());
+          if (fs::exists(e.file)) {
+            try {
+              const Patient p = read_patient(e.file, false);
+              have = p.sequence.first_closed >= 0 &&
+                     p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)].la_surface.has_value();
+            } catch (const Error&) {
+              have = false;  // damaged: make it again
+            }
+          }
+        }
+        if (!have) {
+          report("observe", done, n, e.id + ": simulating its observed closure (fine model)");
+          const auto t0 = std::chrono::steady_clock::now();
+          Patient p = make_cohort_patient(o.seed, i);
+          forward::simulate_observed_closure(&p, o.observation);
+          r["s"] = seconds_since(t0);
+          std::lock_guard<std::mutex> lock(hdf5_mutex());
+          write_patient(e.file, p);
+        }
+      } catch (const std::exception& ex) {
+        r["reason"] = std::string("observation failed: ") + ex.what();
+      }
+      report("observe", ++done, n, e.id + (r.contains("reason") ? ": failed" : ": observed"));
+      return r.dump();
+    });
+    for (int i = 0; i < n; ++i) {
+      const json r = json::parse(out[static_cast<std::size_t>(i)]);
+      observe_s[static_cast<std::size_t>(i)] = r.value("s", 0.0);
+      observe_failed[static_cast<std::size_t>(i)] = r.value("reason", "");
+    }
+  }
+
+  // Stage 2: default parameters.
+  const inverse::ParameterSpace space_template(o.fit, o.defaults);
+  auto load = [&](const Entry& e) {
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
+    return read_patient(e.file, false);
+  };
+  done = 0;
+  auto defaults = pool.map(n, o.jobs, [&](int i) -> std::string {
+    const Entry& e = entries[static_cast<std::size_t>(i)];
+    if (auto rec = folder->record(e.name); rec && rec->value("stage_default", false)) {
+      report("default", ++done, n, e.name + ": done before (resumed)");
+      return rec->dump();
+    }
+    CohortPatient c;
+    c.index = i;
+    c.id = e.id;
+    c.pathology = e.pathology;
+    c.file = e.file.string();
+    c.synthetic = e.is_virtual;
+    c.observe_s = observe_s[static_cast<std::size_t>(i)];
+    c.error_calibrated_mm = kNaN;
+    try {
+      if (!observe_failed[static_cast<std::size_t>(i)].empty())
+        throw Error(observe_failed[static_cast<std::size_t>(i)]);
+      const Patient p = load(e);
+      c.id = p.id;
+      c.synthetic = p.synthetic || p.truth.has_value();
+      if (p.truth) c.pathology = std::string(pathology_name(p.truth->pathology));
+      if (c.pathology.empty()) c.pathology = "unknown";
+      const auto t0 = std::chrono::steady_clock::now();
+      inverse::ObjectiveOptions oo;
+      oo.simulation = o.model;
+      const inverse::ClosureObjective obj(p, space_template, oo);
+      const forward::ClosureResult r = obj.simulate(obj.space().start());
+      const inverse::Evaluation ev = obj.compare(r);
+      if (!ev.ok) throw Error("default simulation failed: " + ev.reason);
+      const DistanceStats d =
+          distance_stats(std::vector<double>(ev.residuals.data(), ev.residuals.data() + ev.residuals.size()));
+      c.error_default_mm = d.mean;
+      c.error_default_sd_mm = d.sd;
+      c.error_default_p95_mm = d.p95;
+      c.orifice_mm2 = r.samples.back().orifice_area_mm2;
+      const Coaptation co = measure_coaptation(r.samples.back().la_surface);
+      c.coaptation_mm = co.length_mm;
+      c.coapting_fraction = co.coapting_fraction;
+      c.rating = o.rating.rate(c.orifice_mm2, c.coaptation_mm, c.coapting_fraction);
+      c.default_s = seconds_since(t0);
+      if (p.truth) c.truth = parameters_json(p.truth->parameters);
+    } catch (const std::exception& ex) {
+      c.status = "failed";
+      c.reason = ex.what();
+    }
+    json rec = c.to_json();
+    rec["stage_default"] = true;
+    folder->save_record(e.name, rec);
+    report("default", ++done, n,
+           e.name + " (" + c.pathology + "): " +
+               (c.status == "ok" ? number(c.error_default_mm) + " mm, " + c.rating : "failed: " + c.reason));
+    return rec.dump();
+  });
+
+  // Stage 3: calibration, one patient at a time per process, its candidates `jobs` at once.
+  std::vector<std::string> finals = defaults;
+  if (o.calibrate) {
+    done = 0;
+    finals = pool.map(n, 1, [&](int i) -> std::string {
+      const Entry& e = entries[static_cast<std::size_t>(i)];
+      json rec = json::parse(defaults[static_cast<std::size_t>(i)]);
+      if (auto r = folder->record(e.name); r && r->value("stage_calibrated", false)) {
+        report("calibrate", ++done, n, e.name + ": done before (resumed)");
+        return r->dump();
+      }
+      if (rec.value("status", "") != "ok") {
+        report("calibrate", ++done, n, e.name + ": skipped (" + rec.value("reason", "") + ")");
+        return rec.dump();
+      }
+      CohortPatient c = CohortPatient::from_json(rec);
+      try {
+        const Patient p = load(e);
+        const auto t0 = std::chrono::steady_clock::now();
+        inverse::ObjectiveOptions oo;
+        oo.simulation = o.model;
+        inverse::ClosureObjective obj(p, space_template, oo);
+        inverse::CalibrationOptions co;
+        co.method = o.method;
+        co.jobs = o.jobs;
+        co.max_simulations = o.max_simulations;
+        const inverse::CalibrationResult r = inverse::calibrate(obj, co);
+        c.error_calibrated_mm = r.error_after_mm;
+        c.simulations = r.simulations;
+        c.fitted = json::object();
+        for (int k = 0; k < obj.space().size(); ++k) c.fitted[obj.space().specs()[k].name] = r.fitted[k];
+        c.calibrate_s = seconds_since(t0);
+      } catch (const std::exception& ex) {
+        c.reason = std::string("calibration failed: ") + ex.what();  // the default stage stands
+      }
+      json out = c.to_json();
+      out["stage_default"] = true;
+      out["stage_calibrated"] = true;
+      folder->save_record(e.name, out);
+      report("calibrate", ++done, n,
+             e.name + ": " + number(c.error_default_mm) + " -> " + number(c.error_calibrated_mm) + " mm");
+      return out.dump();
+    });
+  }
+
+  CohortStudyResult result;
+  for (const auto& s : finals) result.patients.push_back(CohortPatient::from_json(json::parse(s)));
+  result.workers = pool.describe();
+
+  // Summary: overall, per pathology, per rating; parameter errors against the truth.
+  auto summarize = [&](const std::vector<const CohortPatient*>& ps) {
+    std::vector<double> def, cal, p95;
+    std::map<std::string, int> ratings;
+    int failed = 0;
+    for (const auto* p : ps) {
+      if (p->status != "ok") {
+        ++failed;
+        continue;
+      }
+      def.push_back(p->error_default_mm);
+      p95.push_back(p->error_default_p95_mm);
+      cal.push_back(p->error_calibrated_mm);
+      ++ratings[p->rating];
+    }
+    json rj = json::object();
+    for (const char* k : kRatings) rj[k] = ratings[k];
+    return json{{"patients", ps.size()},
+                {"failed", failed},
+                {"error_default_mm", stats_json(def)},
+                {"error_default_p95_mm", stats_json(p95)},
+                {"error_calibrated_mm", stats_json(cal)},
+                {"ratings", rj}};
+  };
+  std::vector<const CohortPatient*> all;
+  std::map<std::string, std::vector<const CohortPatient*>> by_path, by_rating;
+  for (const auto& p : result.patients) {
+    all.push_back(&p);
+    by_path[p.pathology].push_back(&p);
+    if (p.status == "ok") by_rating[p.rating].push_back(&p);
+  }
+  result.summary["overall"] = summarize(all);
+  for (const auto& [k, v] : by_path) result.summary["by_pathology"][k] = summarize(v);
+  for (const auto& [k, v] : by_rating) result.summary["by_rating"][k] = summarize(v);
+  json perr = json::object();
+  for (const auto& p : result.patients)
+    for (const auto& [name, v] : p.fitted.items())
+      if (p.truth.contains(name)) perr[name].push_back(v.get<double>() - p.truth[name].get<double>());
+  for (auto& [name, v] : perr.items()) {
+    std::vector<double> abs;
+    for (const auto& x : v) abs.push_back(std::abs(x.get<double>()));
+    v = stats_json(abs);
+  }
+  result.summary["fitted_minus_truth_abs"] = perr;
+  result.wall_s = seconds_since(t_start);
+  if (pool.is_root()) write_outputs(o, result, *folder);
+  pool.barrier();
+  return result;
+}
+
+namespace {
+
+void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, const StudyFolder& folder) {
+  const json prov{{"mvtwin_version", kVersion},
+                  {"command", o.command},
+                  {"created_utc", utc_now_iso8601()},
+                  {"seed", o.folder.empty() ? json(o.seed) : json(nullptr)},
+                  {"workers", r.workers},
+                  {"wall_s", r.wall_s}};
+  bool any_synthetic = false, any_real = false;
+  json patients = json::array();
+  for (const auto& p : r.patients) {
+    patients.push_back(p.to_json());
+    (p.synthetic ? any_synthetic : any_real) = true;
+  }
+  write_json(folder.path("study.json"), {{"format", "mvtwin-cohort-study"},
+                                         {"study", "cohort"},
+                                         {"synthetic", any_synthetic && !any_real},
+                                         {"config", o.config()},
+                                         {"provenance", prov},
+                                         {"summary", r.summary},
+                                         {"patients", patients}});
+  // The same table as HDF5 (h5py, pandas).
+  TableFile t;
+  t.format = "mvtwin-cohort-study";
+  t.attributes = {{"mvtwin_version", kVersion},
+                  {"command", o.command},
+                  {"created_utc", prov["created_utc"].get<std::string>()},
+                  {"seed", o.folder.empty() ? std::to_string(o.seed) : ""},
+                  {"synthetic", any_synthetic && !any_real ? "1" : "0"},
+                  {"config", o.config().dump()}};
+  auto strings = [&](const char* name, auto get) {
+    TableColumn c;
+    c.name = name;
+    for (const auto& p : r.patients) c.strings.push_back(get(p));
+    t.columns.push_back(std::move(c));
+  };
+  auto numbers = [&](const char* name, const char* units, auto get) {
+    TableColumn c;
+    c.name = name;
+    c.units = units;
+    for (const auto& p : r.patients) c.numbers.push_back(p.status == "ok" ? get(p) : kNaN);
+    t.columns.push_back(std::move(c));
+  };
+  strings("id", [](const CohortPatient& p) { return p.id; });
+  strings("pathology", [](const CohortPatient& p) { return p.pathology; });
+  strings("status", [](const CohortPatient& p) { return p.status; });
+  strings("rating", [](const CohortPatient& p) { return p.rating; });
+  numbers("error_default_mm", "mm", [](const CohortPatient& p) { return p.error_default_mm; });
+  numbers("error_default_sd_mm", "mm", [](const CohortPatient& p) { return p.error_default_sd_mm; });
+  numbers("error_default_p95_mm", "mm", [](const CohortPatient& p) { return p.error_default_p95_mm; });
+  numbers("error_calibrated_mm", "mm", [](const CohortPatient& p) { return p.error_calibrated_mm; });
+  numbers("orifice_mm2", "mm^2", [](const CohortPatient& p) { return p.orifice_mm2; });
+  numbers("coaptation_mm", "mm", [](const CohortPatient& p) { return p.coaptation_mm; });
+  write_table_file(folder.path("study.h5"), t);
+
+  // Plots.
+  const json& s = r.summary;
+  auto mean_of = [](const json& st) { return st["mean"].is_number() ? st["mean"].get<double>() : kNaN; };
+  auto sd_of = [](const json& st) { return st["sd"].is_number() ? st["sd"].get<double>() : kNaN; };
+  {
+    Plot pl;
+    pl.title = "Point-to-mesh error per patient";
+    pl.x_label = "patient";
+    pl.y_label = "mean error, mm";
+    PlotSeries d{"default parameters", {}, {}, false, true, {}}, c{"calibrated", {}, {}, false, true, {}};
+    for (const auto& p : r.patients) {
+      pl.categories.push_back(std::to_string(p.index));
+      d.y.push_back(p.status == "ok" ? p.error_default_mm : kNaN);
+      c.y.push_back(p.error_calibrated_mm);
+    }
+    pl.series.push_back(d);
+    if (o.calibrate) pl.series.push_back(c);
+    pl.h_lines.push_back({1.49, "paper, default parameters: 1.49 mm"});
+    pl.write_png(folder.path("errors_per_patient.png"));
+  }
+  {
+    Plot pl;
+    pl.title = "Error by pathology (mean and SD)";
+    pl.y_label = "mean error, mm";
+    PlotSeries d{"default parameters", {}, {}, false, true, {}}, c{"calibrated", {}, {}, false, true, {}};
+    for (const auto& [name, v] : s["by_pathology"].items()) {
+      pl.categories.push_back(name.rfind("prolapse_", 0) == 0 ? name.substr(9) : name);
+      d.y.push_back(mean_of(v["error_default_mm"]));
+      d.y_error.push_back(sd_of(v["error_default_mm"]));
+      c.y.push_back(mean_of(v["error_calibrated_mm"]));
+      c.y_error.push_back(sd_of(v["error_calibrated_mm"]));
+    }
+    pl.series.push_back(d);
+    if (o.calibrate) pl.series.push_back(c);
+    pl.h_lines.push_back({1.49, "paper: 1.49 mm"});
+    pl.write_png(folder.path("errors_by_pathology.png"));
+  }
+  {
+    Plot pl;
+    pl.title = "Closure ratings (share of patients)";
+    pl.y_label = "% of patients";
+    PlotSeries m{"mvtwin (automatic rating)", {}, {}, false, true, {}},
+        p{"paper (visual rating, 25 patients)", {}, {}, false, true, {}};
+    const double paper[] = {7, 9, 9};
+    const double ok = s["overall"]["patients"].get<double>() - s["overall"]["failed"].get<double>();
+    for (int k = 0; k < 3; ++k) {
+      pl.categories.push_back(kRatings[k]);
+      m.y.push_back(ok > 0 ? 100.0 * s["overall"]["ratings"][kRatings[k]].get<double>() / ok : kNaN);
+      p.y.push_back(100.0 * paper[k] / 25.0);
+    }
+    pl.series = {m, p};
+    pl.write_png(folder.path("ratings.png"));
+  }
+
+  // The report.
+  Report rep("Cohort study: closure with default and calibrated parameters");
+  rep.paragraph("Compared with " + std::string(kPaperCitation) + " (its Tables 2 and 3).");
+  const int np = static_cast<int>(r.patients.size());
+  rep.paragraph(o.folder.empty()
+                    ? "**" + std::to_string(np) + " virtual patients (SYNTHETIC)** of cohort seed " +
+                          std::to_string(o.seed) +
+                          ", the pathologies in turn. Their observed closures were simulated by a finer "
+                          "model than the one compared (`" +
+                          std::to_string(o.observation.simulation.model.ures) + " x " +
+                          std::to_string(o.observation.simulation.model.vres) + "`, dt " +
+                          number(o.observation.simulation.dt, 4) + " s) with " +
+                          number(o.observation.noise_mm) + " mm detection-like noise."
+                    : std::to_string(np) + " patient files from `" + o.folder.string() + "`.");
+  rep.paragraph("Simulation model: " + std::to_string(o.model.model.ures) + " x " +
+                std::to_string(o.model.model.vres) + " grid, " + std::to_string(o.model.model.layers) +
+                " layer(s), dt " + number(o.model.dt, 4) + " s. Error: symmetric point-to-mesh distance "
+                "between the simulated and the observed closed leaflets (annulus row excluded), mm. " +
+                (o.calibrate ? "Calibration: " + o.fit + " by " + o.method + ", at most " +
+                                   std::to_string(o.max_simulations) + " simulations."
+                             : std::string("Not calibrated (default parameters only).")));
+  rep.paragraph("Closure rating (automatic, in place of the paper's visual one), from the simulated "
+                "closed valve: **satisfactory** when the orifice seen from the atrium is at most " +
+                number(o.rating.satisfactory_orifice_mm2, 1) + " mm^2 and the leaflets coapt over at least " +
+                number(o.rating.satisfactory_coaptation_mm, 1) + " mm; **unsatisfactory** when the orifice "
+                "exceeds " + number(o.rating.unsatisfactory_orifice_mm2, 1) +
+                " mm^2 or fewer than half the anterior columns coapt; **passable** otherwise.");
+  rep.heading("mvtwin next to the paper");
+  const json& ov = s["overall"];
+  auto cell = [&](const json& st) { return mean_sd(mean_of(st), sd_of(st)); };
+  std::vector<std::vector<std::string>> rows;
+  rows.push_back({"patients", std::to_string(np) + " (" + std::to_string(ov["failed"].get<int>()) + " failed)",
+                  "25"});
+  rows.push_back({"error, default parameters, mm", cell(ov["error_default_mm"]), "1.49 ± 0.62"});
+  const char* paper_rating[] = {"7 (1.07 ± 0.36)", "9 (1.38 ± 0.31)", "9 (1.91 ± 0.77)"};
+  for (int k = 0; k < 3; ++k) {
+    const json& br = s.contains("by_rating") && s["by_rating"].contains(kRatings[k]) ? s["by_rating"][kRatings[k]]
+                                                                                      : json();
+    rows.push_back({std::string(kRatings[k]) + ": patients (error, mm)",
+                    std::to_string(ov["ratings"][kRatings[k]].get<int>()) +
+                        (br.is_null() ? "" : " (" + cell(br["error_default_mm"]) + ")"),
+                    paper_rating[k]});
+  }
+  if (o.calibrate)
+    rows.push_back({"error, calibrated, mm", cell(ov["error_calibrated_mm"]),
+                    "1.27, 1.12, 1.50 (3 patients, rest lengths by hand)"});
+  rep.table({"", "mvtwin", "paper"}, rows);
+  rep.heading("Per pathology");
+  rows.clear();
+  for (const auto& [name, v] : s["by_pathology"].items())
+    rows.push_back({name, std::to_string(v["patients"].get<int>()), cell(v["error_default_mm"]),
+                    cell(v["error_default_p95_mm"]), o.calibrate ? cell(v["error_calibrated_mm"]) : "-",
+                    std::to_string(v["ratings"]["satisfactory"].get<int>()) + " / " +
+                        std::to_string(v["ratings"]["passable"].get<int>()) + " / " +
+                        std::to_string(v["ratings"]["unsatisfactory"].get<int>())});
+  rep.table({"pathology", "patients", "error default, mm", "95th percentile, mm", "error calibrated, mm",
+             "satisfactory / passable / unsatisfactory"},
+            rows);
+  rep.figure("errors_by_pathology.png", "Mean point-to-mesh error by pathology (bars: SD over patients).");
+  rep.figure("ratings.png", "Closure ratings: mvtwin's automatic rating against the paper's visual one.");
+  if (o.calibrate && !s["fitted_minus_truth_abs"].empty()) {
+    rep.heading("Fitted parameters against the truth (virtual patients)");
+    rows.clear();
+    for (const auto& [name, v] : s["fitted_minus_truth_abs"].items())
+      rows.push_back({name, std::to_string(v["n"].get<int>()), cell(v)});
+    rep.table({"parameter", "patients", "|fitted - truth|"}, rows);
+  }
+  rep.heading("Per patient");
+  rows.clear();
+  for (const auto& p : r.patients)
+    rows.push_back({std::to_string(p.index), p.id, p.pathology,
+                    p.status == "ok" ? number(p.error_default_mm) : "failed",
+                    p.status == "ok" ? number(p.error_default_p95_mm) : "-",
+                    p.status == "ok" ? number(p.orifice_mm2, 1) : "-",
+                    p.status == "ok" ? number(p.coaptation_mm, 1) : "-", p.rating.empty() ? "-" : p.rating,
+                    number(p.error_calibrated_mm)});
+  rep.table({"#", "id", "pathology", "error, mm", "p95, mm", "orifice, mm^2", "coaptation, mm", "rating",
+             "calibrated, mm"},
+            rows);
+  rep.figure("errors_per_patient.png", "Point-to-mesh error per patient.");
+  bool failures = false;
+  for (const auto& p : r.patients)
+    if (!p.reason.empty()) {
+      if (!failures) rep.heading("Failures");
+      failures = true;
+      rep.paragraph("`" + p.id + "`: " + p.reason);
+    }
+  rep.heading("How this was made");
+  rep.code(o.command.empty() ? "(library call)" : o.command);
+  rep.paragraph("mvtwin " + std::string(kVersion) + ", " + r.workers + ", " + number(r.wall_s, 0) +
+                " s wall time (this run; finished patients of a resumed run are not redone).");
+  rep.write(folder.dir());
+}
+
+}  // namespace
+
+}  // namespace mvtwin::studies
