@@ -1,0 +1,230 @@
+// The cohort study: what it writes, that it resumes without redoing, that a bad patient does
+// not stop it, and that MPI ranks give the single process's numbers.
+#include "mvtwin/studies/cohort_study.h"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/table_file.h"
+#include "mvtwin/studies/work_pool.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace mvtwin;
+using namespace mvtwin::studies;
+
+namespace {
+
+class CohortStudy : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("mvtwin_study_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  CohortStudyOptions quick(int n) const {
+    CohortStudyOptions o = CohortStudyOptions::quick();
+    o.patients = n;
+    o.out = dir_ / "study";
+    return o;
+  }
+  static json read_json(const fs::path& p) {
+    std::ifstream f(p);
+    return json::parse(f);
+  }
+  fs::path dir_;
+};
+
+/// The numbers of a study (not its times or where it ran).
+json numbers_of(const json& study) {
+  json out = json::array();
+  for (const auto& p : study["patients"])
+    out.push_back({p["id"], p["pathology"], p["status"], p["error_default_mm"], p["error_default_p95_mm"],
+                   p["orifice_mm2"], p["coaptation_mm"], p["rating"], p["error_calibrated_mm"]});
+  return out;
+}
+
+TEST(ClosureRating, ThresholdsDecide) {
+  const ClosureRating r;  // 5 mm^2 / 3 mm / 20 mm^2
+  EXPECT_EQ(r.rate(0.0, 6.0, 1.0), "satisfactory");
+  EXPECT_EQ(r.rate(5.0, 3.0, 1.0), "satisfactory");
+  EXPECT_EQ(r.rate(5.1, 6.0, 1.0), "passable");
+  EXPECT_EQ(r.rate(1.0, 2.9, 1.0), "passable");
+  EXPECT_EQ(r.rate(20.1, 6.0, 1.0), "unsatisfactory");
+  EXPECT_EQ(r.rate(0.0, 6.0, 0.4), "unsatisfactory");
+  EXPECT_EQ(r.rate(std::nan(""), 6.0, 1.0), "unsatisfactory");
+  ClosureRating bad;
+  bad.unsatisfactory_orifice_mm2 = 1.0;  // below the satisfactory bound
+  std::string e;
+  EXPECT_FALSE(bad.is_valid(&e));
+  EXPECT_NE(e.find("orifice"), std::string::npos);
+}
+
+TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
+  CohortStudyOptions o = quick(3);
+  int events = 0;
+  o.progress = [&](const StudyEvent&) { ++events; };
+  auto pool = make_local_pool();
+  const CohortStudyResult r = run_cohort_study(o, *pool);
+  EXPECT_GT(events, 0);
+  const json j = read_json(o.out / "study.json");
+  ASSERT_EQ(j["patients"].size(), 3u);
+  EXPECT_TRUE(j["synthetic"].get<bool>());
+  EXPECT_EQ(j["provenance"]["seed"].get<std::uint64_t>(), o.seed);
+  std::set<std::string> pathologies;
+  for (const auto& p : j["patients"]) {
+    for (const char* k : {"id", "pathology", "status", "error_default_mm", "error_calibrated_mm", "rating"})
+      EXPECT_TRUE(p.contains(k)) << k;
+    EXPECT_EQ(p["status"], "ok") << p.dump();
+    const double e = p["error_default_mm"].get<double>();
+    // The observation's noise is 0.5 mm: a simulation cannot match it much better than that on
+    // average, and a default closure of a virtual valve is not centimetres away.
+    EXPECT_GT(e, 0.2);
+    EXPECT_LT(e, 5.0);
+    EXPECT_GE(p["error_default_p95_mm"].get<double>(), e);
+    EXPECT_TRUE(p["error_calibrated_mm"].is_null());  // not calibrated in the quick size
+    EXPECT_TRUE(p["rating"] == "satisfactory" || p["rating"] == "passable" || p["rating"] == "unsatisfactory");
+    pathologies.insert(p["pathology"].get<std::string>());
+  }
+  EXPECT_EQ(pathologies.size(), 3u);  // the pathologies in turn
+  // The HDF5 table holds the same numbers.
+  const TableFile t = read_table_file(o.out / "study.h5");
+  EXPECT_EQ(t.format, "mvtwin-cohort-study");
+  const TableColumn* err = nullptr;
+  for (const auto& c : t.columns)
+    if (c.name == "error_default_mm") err = &c;
+  ASSERT_NE(err, nullptr);
+  ASSERT_EQ(err->numbers.size(), 3u);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_DOUBLE_EQ(err->numbers[static_cast<std::size_t>(i)], j["patients"][i]["error_default_mm"].get<double>());
+  EXPECT_EQ(err->units, "mm");
+  // The report cites the paper and shows its plots.
+  std::ifstream md(o.out / "report.md");
+  std::stringstream s;
+  s << md.rdbuf();
+  EXPECT_NE(s.str().find("Mansi"), std::string::npos);
+  EXPECT_NE(s.str().find("1.49 ± 0.62"), std::string::npos);
+  for (const char* png : {"errors_per_patient.png", "errors_by_pathology.png", "ratings.png"}) {
+    EXPECT_GT(fs::file_size(o.out / png), 1000u) << png;
+    EXPECT_NE(s.str().find(png), std::string::npos) << png;
+  }
+  EXPECT_GT(fs::file_size(o.out / "report.html"), fs::file_size(o.out / "ratings.png"));  // embedded
+  EXPECT_EQ(r.patients.size(), 3u);
+}
+
+TEST_F(CohortStudy, ResumedStudyRedoesNothingAndGivesTheSameNumbers) {
+  CohortStudyOptions o = quick(2);
+  auto pool = make_local_pool();
+  run_cohort_study(o, *pool);
+  const json first = read_json(o.out / "study.json");
+  // A killed run: one patient's record lost, the study file gone.
+  fs::remove(o.out / "records" / "patient_0001.json");
+  fs::remove(o.out / "study.json");
+  std::vector<std::string> simulated, resumed;
+  o.progress = [&](const StudyEvent& e) {
+    if (e.message.find("simulating") != std::string::npos) simulated.push_back(e.message);
+    if (e.message.find("resumed") != std::string::npos) resumed.push_back(e.message);
+  };
+  run_cohort_study(o, *pool);
+  EXPECT_TRUE(simulated.empty()) << "observations are cached";
+  ASSERT_EQ(resumed.size(), 1u);
+  EXPECT_NE(resumed[0].find("patient_0000"), std::string::npos);
+  EXPECT_EQ(numbers_of(read_json(o.out / "study.json")), numbers_of(first));
+}
+
+TEST_F(CohortStudy, FolderWithOtherSettingsIsRefusedNamingThem) {
+  CohortStudyOptions o = quick(1);
+  auto pool = make_local_pool();
+  run_cohort_study(o, *pool);
+  o.model.dt = 0.01;
+  try {
+    run_cohort_study(o, *pool);
+    FAIL() << "a folder holding another study was reused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("calibration_model"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(CohortStudy, BadPatientFileIsRecordedAndTheOthersGoOn) {
+  // Two real-patient-style files: one observed virtual patient, one corrupt.
+  CohortStudyOptions v = quick(1);
+  auto pool = make_local_pool();
+  run_cohort_study(v, *pool);
+  fs::create_directories(dir_ / "folder");
+  for (const auto& f : fs::directory_iterator(v.out / "observed")) fs::copy(f.path(), dir_ / "folder" / "a.h5");
+  {
+    std::ofstream bad(dir_ / "folder" / "b.h5");
+    bad << "not an HDF5 file";
+  }
+  CohortStudyOptions o = quick(1);
+  o.folder = dir_ / "folder";
+  o.out = dir_ / "from_folder";
+  const CohortStudyResult r = run_cohort_study(o, *pool);
+  ASSERT_EQ(r.patients.size(), 2u);
+  EXPECT_EQ(r.patients[0].status, "ok") << r.patients[0].reason;
+  EXPECT_EQ(r.patients[1].status, "failed");
+  EXPECT_NE(r.patients[1].reason.find("b.h5"), std::string::npos) << r.patients[1].reason;
+  EXPECT_EQ(r.summary["overall"]["failed"].get<int>(), 1);
+  // The same patient gives the same error read from a folder as in the virtual cohort.
+  EXPECT_DOUBLE_EQ(r.patients[0].error_default_mm,
+                   read_json(v.out / "study.json")["patients"][0]["error_default_mm"].get<double>());
+}
+
+TEST_F(CohortStudy, InvalidOptionsAreRefused) {
+  auto pool = make_local_pool();
+  CohortStudyOptions o = quick(1);
+  o.method = "gradient-descent";
+  EXPECT_THROW(run_cohort_study(o, *pool), Error);
+  o = quick(1);
+  o.patients = 0;
+  EXPECT_THROW(run_cohort_study(o, *pool), Error);
+  o = quick(1);
+  o.out.clear();
+  EXPECT_THROW(run_cohort_study(o, *pool), Error);
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+TEST_F(CohortStudy, TwoMpiRanksGiveTheSingleProcessNumbers) {
+  if (!built_with_mpi()) GTEST_SKIP() << "this build has no MPI (libopenmpi-dev not found)";
+  if (std::system("command -v mpirun > /dev/null 2>&1") != 0) GTEST_SKIP() << "no mpirun on this machine";
+  // Open MPI refuses root without these; its own allocations at exit are not ours to check.
+  const std::string env =
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none "
+      "ASAN_OPTIONS=detect_leaks=0 ";
+  const std::string common = " study cohort --quick --patients 4 --jobs 1 --cache " + (dir_ / "obs").string();
+  const std::string one = std::string(MVTWIN_BINARY) + common + " --out " + (dir_ / "one").string();
+  const std::string two = env + "mpirun -np 2 --oversubscribe " + std::string(MVTWIN_BINARY) + common +
+                          " --out " + (dir_ / "two").string();
+  const std::string log = (dir_ / "log.txt").string();
+  ASSERT_EQ(std::system((one + " > " + log + " 2>&1").c_str()), 0) << slurp(log);
+  const int rc = std::system((two + " > " + log + " 2>&1").c_str());
+  const std::string out = slurp(log);
+  ASSERT_EQ(WEXITSTATUS(rc), 0) << out;
+  EXPECT_NE(out.find("2 MPI ranks"), std::string::npos) << out;
+  // Both ranks worked (dynamic balancing hands each at least one of 4 patients).
+  EXPECT_NE(out.find("[rank 0]"), std::string::npos) << out;
+  EXPECT_NE(out.find("[rank 1]"), std::string::npos) << out;
+  EXPECT_EQ(numbers_of(read_json(dir_ / "two" / "study.json")),
+            numbers_of(read_json(dir_ / "one" / "study.json")));
+}
+
+}  // namespace
