@@ -22,6 +22,7 @@
 #include "mvtwin/inverse/closure_objective.h"
 #include "mvtwin/studies/plot.h"
 #include "mvtwin/studies/report.h"
+#include "study_util.h"
 
 namespace mvtwin::studies {
 namespace fs = std::filesystem;
@@ -29,32 +30,12 @@ using nlohmann::json;
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-/// FNV-1a of a description, 8 hex digits: names cached observations by the model that made them.
-std::string key_of(const std::string& s) {
-  std::uint32_t h = 2166136261u;
-  for (unsigned char c : s) h = (h ^ c) * 16777619u;
-  char out[16];
-  std::snprintf(out, sizeof out, "%08x", h);
-  return out;
-}
-
-json describe(const forward::ClosureOptions& o) {
-  json j = json::object();
-  for (const auto& [k, v] : forward::describe_options(o)) j[k] = v;
-  return j;
-}
-
-json parameters_json(const ValveParameters& p) {
-  json j = json::object();
-  p.for_each([&](const std::string& name, double v, const char*) { j[name] = v; });
-  return j;
-}
+using detail::kNaN;
+using detail::seconds_since;
+using detail::describe;
+using detail::parameters_json;
+using detail::key_of;
+using detail::stats_json;
 
 double num(const json& j, const char* key) {
   return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
@@ -67,29 +48,6 @@ struct Entry {
   fs::path file;     ///< the observed patient file (cached observation or the given file)
   bool is_virtual = false;
 };
-
-struct Stats {
-  int n = 0;
-  double mean = kNaN, sd = kNaN;
-};
-Stats stats(const std::vector<double>& v) {
-  Stats s;
-  double sum = 0, sq = 0;
-  for (double x : v)
-    if (std::isfinite(x)) {
-      ++s.n;
-      sum += x;
-      sq += x * x;
-    }
-  if (s.n == 0) return s;
-  s.mean = sum / s.n;
-  s.sd = s.n > 1 ? std::sqrt(std::max(0.0, (sq - s.n * s.mean * s.mean) / (s.n - 1))) : 0.0;
-  return s;
-}
-json stats_json(const std::vector<double>& v) {
-  const Stats s = stats(v);
-  return {{"n", s.n}, {"mean", s.n ? json(s.mean) : json(nullptr)}, {"sd", s.n ? json(s.sd) : json(nullptr)}};
-}
 
 const char* kRatings[] = {"satisfactory", "passable", "unsatisfactory"};
 
@@ -487,12 +445,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
 namespace {
 
 void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, const StudyFolder& folder) {
-  const json prov{{"mvtwin_version", kVersion},
-                  {"command", o.command},
-                  {"created_utc", utc_now_iso8601()},
-                  {"seed", o.folder.empty() ? json(o.seed) : json(nullptr)},
-                  {"workers", r.workers},
-                  {"wall_s", r.wall_s}};
+  json prov = detail::provenance(o.command, r.workers, r.wall_s);
+  prov["seed"] = o.folder.empty() ? json(o.seed) : json(nullptr);
   bool any_synthetic = false, any_real = false;
   json patients = json::array();
   for (const auto& p : r.patients) {

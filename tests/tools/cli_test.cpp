@@ -62,7 +62,7 @@ class Cli : public ::testing::Test {
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
   for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model", "simulate",
-                        "calibrate", "clip"}) {
+                        "calibrate", "clip", "study cohort", "study sensitivity"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"

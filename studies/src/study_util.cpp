@@ -1,0 +1,61 @@
+#include "study_util.h"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
+#include "mvtwin/forward/closure_settings.h"
+
+namespace mvtwin::studies::detail {
+
+nlohmann::json describe(const forward::ClosureOptions& o) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [k, v] : forward::describe_options(o)) j[k] = v;
+  return j;
+}
+
+nlohmann::json parameters_json(const ValveParameters& p) {
+  nlohmann::json j = nlohmann::json::object();
+  p.for_each([&](const std::string& name, double v, const char*) { j[name] = v; });
+  return j;
+}
+
+std::string key_of(const std::string& s) {
+  std::uint32_t h = 2166136261u;
+  for (unsigned char c : s) h = (h ^ c) * 16777619u;
+  char out[16];
+  std::snprintf(out, sizeof out, "%08x", h);
+  return out;
+}
+
+Stats stats(const std::vector<double>& v) {
+  Stats s;
+  double sum = 0, sq = 0;
+  for (double x : v)
+    if (std::isfinite(x)) {
+      ++s.n;
+      sum += x;
+      sq += x * x;
+    }
+  if (s.n == 0) return s;
+  s.mean = sum / s.n;
+  s.sd = s.n > 1 ? std::sqrt(std::max(0.0, (sq - s.n * s.mean * s.mean) / (s.n - 1))) : 0.0;
+  return s;
+}
+
+nlohmann::json stats_json(const std::vector<double>& v) {
+  const Stats s = stats(v);
+  using nlohmann::json;
+  return {{"n", s.n}, {"mean", s.n ? json(s.mean) : json(nullptr)}, {"sd", s.n ? json(s.sd) : json(nullptr)}};
+}
+
+nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s) {
+  return {{"mvtwin_version", kVersion},
+          {"command", command},
+          {"created_utc", utc_now_iso8601()},
+          {"workers", workers},
+          {"wall_s", wall_s}};
+}
+
+}  // namespace mvtwin::studies::detail
