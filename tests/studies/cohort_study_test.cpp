@@ -16,6 +16,7 @@
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/table_file.h"
+#include "mvtwin/studies/scaling.h"
 #include "mvtwin/studies/work_pool.h"
 
 namespace fs = std::filesystem;
@@ -225,6 +226,29 @@ TEST_F(CohortStudy, TwoMpiRanksGiveTheSingleProcessNumbers) {
   EXPECT_NE(out.find("[rank 1]"), std::string::npos) << out;
   EXPECT_EQ(numbers_of(read_json(dir_ / "two" / "study.json")),
             numbers_of(read_json(dir_ / "one" / "study.json")));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Scaling, DynamicBalancingMatchesHandCountedSchedules) {
+  // Equal items that fill every rank: nobody waits.
+  EXPECT_DOUBLE_EQ(dynamic_makespan(std::vector<double>(8, 2.0), 4), 4.0);
+  EXPECT_DOUBLE_EQ(dynamic_efficiency(std::vector<double>(8, 2.0), 4), 1.0);
+  // One item more than ranks: the last runs alone, (n+1)/(2n).
+  EXPECT_DOUBLE_EQ(dynamic_efficiency(std::vector<double>(5, 1.0), 4), 5.0 / 8.0);
+  // A long item first: the others fill the second rank (3 | 1+1+1).
+  EXPECT_DOUBLE_EQ(dynamic_makespan({3, 1, 1, 1}, 2), 3.0);
+  // A long item last waits for a free rank: (1+1 | 1), then 3 on the rank free at 1.
+  EXPECT_DOUBLE_EQ(dynamic_makespan({1, 1, 1, 3}, 2), 4.0);
+  EXPECT_DOUBLE_EQ(dynamic_makespan({1, 2, 3}, 1), 6.0);
+  // Many patients per rank: efficiency tends to 1 whatever the spread.
+  const std::vector<double> spread{10, 30, 60, 45, 20};
+  EXPECT_GT(expected_efficiency(spread, 10000, 10), 0.99);
+  EXPECT_LT(expected_efficiency(spread, 100, 100), 0.6);  // one patient each: the longest decides
+  EXPECT_THROW(expected_efficiency({}, 10, 2), Error);
+  EXPECT_THROW(dynamic_makespan({1.0}, 0), Error);
 }
 
 }  // namespace
