@@ -99,6 +99,12 @@ bool CohortStudyOptions::is_valid(std::string* error) const {
   return true;
 }
 
+forward::VirtualClosureOptions CohortStudyOptions::study_observation() {
+  forward::VirtualClosureOptions v;
+  v.simulation.dt = 0.005;
+  return v;
+}
+
 CohortStudyOptions CohortStudyOptions::quick() {
   CohortStudyOptions o;
   o.patients = 5;

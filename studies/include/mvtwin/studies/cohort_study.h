@@ -40,7 +40,12 @@ struct CohortStudyOptions {
   /// Where virtual patients' observed closures are kept (default OUT/observed); shared by
   /// studies and runs, named by the observation model.
   std::filesystem::path cache;
-  forward::VirtualClosureOptions observation;  ///< how virtual patients are observed
+  /// How virtual patients are observed: the fine model of VirtualClosureOptions (40 x 40,
+  /// 3 layers) with dt 0.005 s instead of 0.001 s, 2.8x faster; its closed surfaces differ from
+  /// dt = 0.001 s by 0.011 mm mean, 0.11 mm max on patient 0 (docs/studies.md), far below
+  /// the 0.5 mm observation noise, and it stays finer than the calibration model (dt 0.01 s).
+  forward::VirtualClosureOptions observation = study_observation();
+  static forward::VirtualClosureOptions study_observation();
   forward::ClosureOptions model;               ///< the calibration model
   ValveParameters defaults;                    ///< the default parameters (the start)
   bool calibrate = true;
