@@ -30,6 +30,22 @@ studies::StudyProgress progress_printer(const studies::WorkPool& pool) {
   };
 }
 
+/// Applies a name=value model option; refuses a patient parameter (naming why) instead of
+/// dropping it.
+void apply_model_setting(const std::string& assignment, forward::ClosureOptions* options,
+                         const std::string& why) {
+  ValveParameters p;
+  const ValveParameters before = p;
+  forward::apply_setting(assignment, options, &p);
+  bool changed = false;
+  p.for_each([&](const std::string& name, double v, const char*) {
+    before.for_each(
+        [&](const std::string& n2, double v2, const char*) { changed |= name == n2 && v != v2; });
+  });
+  if (changed)
+    throw Error(assignment + " is a patient parameter, not a model option (" + why + ")");
+}
+
 void register_cohort(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
       "cohort", "Default-parameter closure and calibration over a cohort (the paper's Tables 2-3)");
@@ -54,31 +70,46 @@ void register_cohort(CLI::App* study, Context& ctx) {
   };
   auto a = std::make_shared<Args>();
   cmd->add_option("--out", a->out, "the study folder")->required();
-  cmd->add_option("--patients", a->patients, "virtual patients")->check(CLI::Range(1, 100000))->default_val(25);
+  cmd->add_option("--patients", a->patients, "virtual patients")
+      ->check(CLI::Range(1, 100000))
+      ->default_val(25);
   cmd->add_option("--seed", a->seed, "cohort seed")->default_val(2026);
   cmd->add_option("--folder", a->folder, "every patient file (*.h5) in this folder instead")
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("--cache", a->cache, "observed closures of virtual patients (default OUT/observed)");
+  cmd->add_option("--cache", a->cache,
+                  "observed closures of virtual patients (default OUT/observed)");
   cmd->add_flag("--no-calibrate", a->no_calibrate, "default parameters only");
   cmd->add_option("--fit", a->fit, "what to calibrate")->default_val(a->fit);
-  cmd->add_option("--method", a->method, "bobyqa, cobyla, neldermead, sbplx or ceres")->default_val(a->method);
-  cmd->add_option("--max-sims", a->max_sims, "simulations per calibration")->default_val(50)->check(CLI::Range(1, 100000));
-  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")->default_val(2)->check(CLI::Range(1, 256));
-  cmd->add_option("--set", a->sets,
-                  "name=value: the simulation model (ures=20, dt=0.005, ...) or a default parameter");
-  cmd->add_option("--observe-set", a->observe_sets, "name=value: the virtual patients' observation model");
+  cmd->add_option("--method", a->method, "bobyqa, cobyla, neldermead, sbplx or ceres")
+      ->default_val(a->method);
+  cmd->add_option("--max-sims", a->max_sims, "simulations per calibration")
+      ->default_val(50)
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
+  cmd->add_option(
+      "--set", a->sets,
+      "name=value: the simulation model (ures=20, dt=0.005, ...) or a default parameter");
+  cmd->add_option("--observe-set", a->observe_sets,
+                  "name=value: the virtual patients' observation model");
   cmd->add_option("--noise", a->noise, "observation noise SD, mm")->default_val(0.5);
-  cmd->add_option("--satisfactory-orifice", a->rating.satisfactory_orifice_mm2, "rating threshold, mm^2")
+  cmd->add_option("--satisfactory-orifice", a->rating.satisfactory_orifice_mm2,
+                  "rating threshold, mm^2")
       ->default_val(a->rating.satisfactory_orifice_mm2);
-  cmd->add_option("--satisfactory-coaptation", a->rating.satisfactory_coaptation_mm, "rating threshold, mm")
+  cmd->add_option("--satisfactory-coaptation", a->rating.satisfactory_coaptation_mm,
+                  "rating threshold, mm")
       ->default_val(a->rating.satisfactory_coaptation_mm);
-  cmd->add_option("--unsatisfactory-orifice", a->rating.unsatisfactory_orifice_mm2, "rating threshold, mm^2")
+  cmd->add_option("--unsatisfactory-orifice", a->rating.unsatisfactory_orifice_mm2,
+                  "rating threshold, mm^2")
       ->default_val(a->rating.unsatisfactory_orifice_mm2);
-  cmd->add_flag("--quick", a->quick,
-                "the test size: 5 patients, default parameters, a coarse model (flags given still apply)");
+  cmd->add_flag(
+      "--quick", a->quick,
+      "the test size: 5 patients, default parameters, a coarse model (flags given still apply)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::CohortStudyOptions o = a->quick ? studies::CohortStudyOptions::quick() : studies::CohortStudyOptions{};
+      studies::CohortStudyOptions o =
+          a->quick ? studies::CohortStudyOptions::quick() : studies::CohortStudyOptions{};
       o.out = a->out;
       o.folder = a->folder;
       o.cache = a->cache;
@@ -93,27 +124,18 @@ void register_cohort(CLI::App* study, Context& ctx) {
       o.observation.noise_mm = a->noise;
       o.rating = a->rating;
       for (const auto& s : a->sets) forward::apply_setting(s, &o.model, &o.defaults);
-      for (const auto& s : a->observe_sets) {
-        ValveParameters truth_is_hidden;
-        const ValveParameters before = truth_is_hidden;
-        forward::apply_setting(s, &o.observation.simulation, &truth_is_hidden);
-        bool changed = false;
-        truth_is_hidden.for_each([&](const std::string& name, double v, const char*) {
-          before.for_each([&](const std::string& n2, double v2, const char*) {
-            if (name == n2 && v != v2) changed = true;
-          });
-        });
-        if (changed)
-          throw Error("--observe-set " + s + ": a patient parameter; virtual patients are observed "
-                      "with their hidden ones");
-      }
+      for (const auto& s : a->observe_sets)
+        apply_model_setting(
+            s, &o.observation.simulation,
+            "--observe-set: virtual patients are observed with their hidden parameters");
       o.command = ctx.command_line;
       std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
       o.progress = progress_printer(*pool);
       if (pool->is_root())
         std::cout << "cohort study in " << o.out.string() << " on " << pool->describe() << ", "
-                  << (o.folder.empty() ? std::to_string(o.patients) + " virtual patients (SYNTHETIC)"
-                                       : "the patients of " + o.folder.string())
+                  << (o.folder.empty()
+                          ? std::to_string(o.patients) + " virtual patients (SYNTHETIC)"
+                          : "the patients of " + o.folder.string())
                   << (o.calibrate ? ", calibrated" : ", default parameters") << std::endl;
       const studies::CohortStudyResult r = studies::run_cohort_study(o, *pool);
       if (!pool->is_root()) return 0;
@@ -132,9 +154,11 @@ void register_cohort(CLI::App* study, Context& ctx) {
       };
       for (const auto& [k, v] : r.summary["by_pathology"].items()) row(k, v);
       row("all", ov);
-      std::printf("paper (25 patients)                                  1.49 ± 0.62                          7/9/9\n");
-      std::cout << "wrote " << (o.out / "study.json").string() << ", study.h5, report.md, report.html ("
-                << r.wall_s << " s)\n";
+      std::printf(
+          "paper (25 patients)                                  1.49 ± 0.62                        "
+          "  7/9/9\n");
+      std::cout << "wrote " << (o.out / "study.json").string()
+                << ", study.h5, report.md, report.html (" << r.wall_s << " s)\n";
       return ov["failed"].get<int>() > 0 ? 4 : 0;
     };
   });
@@ -142,7 +166,8 @@ void register_cohort(CLI::App* study, Context& ctx) {
 
 void register_sensitivity(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
-      "sensitivity", "Annulus and papillary motion, chordae count, stiffness and rest lengths (paper Sec. 4.2)");
+      "sensitivity",
+      "Annulus and papillary motion, chordae count, stiffness and rest lengths (paper Sec. 4.2)");
   cmd->footer(
       "Examples:\n"
       "  mvtwin study sensitivity --out sensitivity/\n"
@@ -164,10 +189,16 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
   auto a = std::make_shared<Args>();
   cmd->add_option("--out", a->out, "the study folder")->required();
   cmd->add_option("--seed", a->seed, "cohort seed of the virtual patient")->default_val(2026);
-  cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")->default_val(0)->check(CLI::NonNegativeNumber);
-  cmd->add_option("--patient-file", a->patient_file, "a patient file instead")->check(CLI::ExistingFile);
-  cmd->add_option("--sample", a->sample_s, "tip distances every this much image time, s")->default_val(0.01);
-  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")->default_val(2)->check(CLI::Range(1, 256));
+  cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")
+      ->default_val(0)
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--patient-file", a->patient_file, "a patient file instead")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--sample", a->sample_s, "tip distances every this much image time, s")
+      ->default_val(0.01);
+  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
   cmd->add_option("--set", a->sets, "name=value for the baseline model (ures=40, dt=0.005, ...)");
   cmd->add_flag("--quick", a->quick, "the test size: a coarse model (16 x 12, dt 0.02 s)");
   cmd->callback([=, &ctx] {
@@ -181,25 +212,16 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
       o.sample_s = a->sample_s;
       o.jobs = a->jobs;
       o.command = ctx.command_line;
-      for (const auto& s : a->sets) {
-        ValveParameters p;
-        const ValveParameters before = p;
-        forward::apply_setting(s, &o.model, &p);
-        bool changed = false;
-        p.for_each([&](const std::string& name, double v, const char*) {
-          before.for_each([&](const std::string& n2, double v2, const char*) {
-            if (name == n2 && v != v2) changed = true;
-          });
-        });
-        if (changed)
-          throw Error("--set " + s + ": a patient parameter; the baseline is the patient's own (the "
-                      "study varies the chordae itself)");
-      }
+      for (const auto& s : a->sets)
+        apply_model_setting(
+            s, &o.model,
+            "--set: the baseline is the patient's own (the study varies the chordae itself)");
       std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
       o.progress = progress_printer(*pool);
       const studies::SensitivityStudyResult r = studies::run_sensitivity_study(o, *pool);
       if (!pool->is_root()) return 0;
-      std::printf("%-26s %14s %14s %16s\n", "case", "max AL diff mm", "max PL diff mm", "end orifice mm2");
+      std::printf("%-26s %14s %14s %16s\n", "case", "max AL diff mm", "max PL diff mm",
+                  "end orifice mm2");
       int failed = 0;
       for (const auto& k : r.cases) {
         if (k.status != "ok") {
@@ -220,7 +242,8 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
 }  // namespace
 
 void register_study(CLI::App& app, Context& ctx) {
-  auto* study = app.add_subcommand("study", "Experiments with reports and plots (on one machine or MPI)");
+  auto* study =
+      app.add_subcommand("study", "Experiments with reports and plots (on one machine or MPI)");
   study->require_subcommand(1);
   study->footer("Run 'mvtwin study NAME --help' for a study's options and an example.");
   register_cohort(study, ctx);

@@ -1,11 +1,11 @@
 #include "mvtwin/studies/cohort_study.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <atomic>
 #include <map>
 #include <mutex>
 
@@ -31,11 +31,11 @@ using nlohmann::json;
 
 namespace {
 
-using detail::kNaN;
-using detail::seconds_since;
 using detail::describe;
-using detail::parameters_json;
 using detail::key_of;
+using detail::kNaN;
+using detail::parameters_json;
+using detail::seconds_since;
 using detail::stats_json;
 
 double num(const json& j, const char* key) {
@@ -46,7 +46,7 @@ double num(const json& j, const char* key) {
 struct Entry {
   std::string name;  ///< record name: patient_0003, or the file's stem
   std::string id, pathology;
-  fs::path file;     ///< the observed patient file (cached observation or the given file)
+  fs::path file;  ///< the observed patient file (cached observation or the given file)
   bool is_virtual = false;
 };
 
@@ -71,7 +71,8 @@ bool ClosureRating::is_valid(std::string* error) const {
   };
   if (!(satisfactory_orifice_mm2 >= 0) || !(unsatisfactory_orifice_mm2 > satisfactory_orifice_mm2))
     return fail("rating: need 0 <= satisfactory orifice < unsatisfactory orifice (mm^2)");
-  if (!(satisfactory_coaptation_mm >= 0)) return fail("rating: coaptation threshold must be >= 0 mm");
+  if (!(satisfactory_coaptation_mm >= 0))
+    return fail("rating: coaptation threshold must be >= 0 mm");
   return true;
 }
 
@@ -153,6 +154,7 @@ json CohortPatient::to_json() const {
          {"error_default_sd_mm", status == "ok" ? n(error_default_sd_mm) : json(nullptr)},
          {"error_default_p95_mm", status == "ok" ? n(error_default_p95_mm) : json(nullptr)},
          {"orifice_mm2", status == "ok" ? n(orifice_mm2) : json(nullptr)},
+         {"orifice_observed_mm2", status == "ok" ? n(orifice_observed_mm2) : json(nullptr)},
          {"coaptation_mm", status == "ok" ? n(coaptation_mm) : json(nullptr)},
          {"coapting_fraction", status == "ok" ? n(coapting_fraction) : json(nullptr)},
          {"rating", rating.empty() ? json(nullptr) : json(rating)},
@@ -180,6 +182,7 @@ CohortPatient CohortPatient::from_json(const json& j) {
   p.error_default_sd_mm = num(j, "error_default_sd_mm");
   p.error_default_p95_mm = num(j, "error_default_p95_mm");
   p.orifice_mm2 = num(j, "orifice_mm2");
+  p.orifice_observed_mm2 = num(j, "orifice_observed_mm2");
   p.coaptation_mm = num(j, "coaptation_mm");
   p.coapting_fraction = num(j, "coapting_fraction");
   p.rating = j.contains("rating") && j["rating"].is_string() ? j["rating"].get<std::string>() : "";
@@ -197,7 +200,8 @@ CohortPatient CohortPatient::from_json(const json& j) {
 
 namespace {
 
-void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, const StudyFolder& folder);
+void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
+                   const StudyFolder& folder);
 
 }  // namespace
 
@@ -261,7 +265,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
             try {
               const Patient p = read_patient(e.file, false);
               have = p.sequence.first_closed >= 0 &&
-                     p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)].la_surface.has_value();
+                     p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)]
+                         .la_surface.has_value();
             } catch (const Error&) {
               have = false;  // damaged: make it again
             }
@@ -325,8 +330,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       const forward::ClosureResult r = obj.simulate(obj.space().start());
       const inverse::Evaluation ev = obj.compare(r);
       if (!ev.ok) throw Error("default simulation failed: " + ev.reason);
-      const DistanceStats d =
-          distance_stats(std::vector<double>(ev.residuals.data(), ev.residuals.data() + ev.residuals.size()));
+      const DistanceStats d = distance_stats(
+          std::vector<double>(ev.residuals.data(), ev.residuals.data() + ev.residuals.size()));
       c.error_default_mm = d.mean;
       c.error_default_sd_mm = d.sd;
       c.error_default_p95_mm = d.p95;
@@ -334,6 +339,9 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       const Coaptation co = measure_coaptation(r.samples.back().la_surface);
       c.coaptation_mm = co.length_mm;
       c.coapting_fraction = co.coapting_fraction;
+      c.orifice_observed_mm2 =
+          measure_closure(p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)])
+              .orifice_area_mm2;
       c.rating = o.rating.rate(c.orifice_mm2, c.coaptation_mm, c.coapting_fraction);
       c.default_s = seconds_since(t0);
       if (p.truth) c.truth = parameters_json(p.truth->parameters);
@@ -346,7 +354,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
     folder->save_record(e.name, rec);
     report("default", ++done, n,
            e.name + " (" + c.pathology + "): " +
-               (c.status == "ok" ? number(c.error_default_mm) + " mm, " + c.rating : "failed: " + c.reason));
+               (c.status == "ok" ? number(c.error_default_mm) + " mm, " + c.rating
+                                 : "failed: " + c.reason));
     return rec.dump();
   });
 
@@ -380,7 +389,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
         c.error_calibrated_mm = r.error_after_mm;
         c.simulations = r.simulations;
         c.fitted = json::object();
-        for (int k = 0; k < obj.space().size(); ++k) c.fitted[obj.space().specs()[k].name] = r.fitted[k];
+        for (int k = 0; k < obj.space().size(); ++k)
+          c.fitted[obj.space().specs()[k].name] = r.fitted[k];
         c.calibrate_s = seconds_since(t0);
       } catch (const std::exception& ex) {
         c.reason = std::string("calibration failed: ") + ex.what();  // the default stage stands
@@ -390,7 +400,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       out["stage_calibrated"] = true;
       folder->save_record(e.name, out);
       report("calibrate", ++done, n,
-             e.name + ": " + number(c.error_default_mm) + " -> " + number(c.error_calibrated_mm) + " mm");
+             e.name + ": " + number(c.error_default_mm) + " -> " + number(c.error_calibrated_mm) +
+                 " mm");
       return out.dump();
     });
   }
@@ -401,7 +412,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
 
   // Summary: overall, per pathology, per rating; parameter errors against the truth.
   auto summarize = [&](const std::vector<const CohortPatient*>& ps) {
-    std::vector<double> def, cal, p95;
+    std::vector<double> def, cal, p95, orifice, orifice_obs;
     std::map<std::string, int> ratings;
     int failed = 0;
     for (const auto* p : ps) {
@@ -411,6 +422,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       }
       def.push_back(p->error_default_mm);
       p95.push_back(p->error_default_p95_mm);
+      orifice.push_back(p->orifice_mm2);
+      orifice_obs.push_back(p->orifice_observed_mm2);
       cal.push_back(p->error_calibrated_mm);
       ++ratings[p->rating];
     }
@@ -421,6 +434,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
                 {"error_default_mm", stats_json(def)},
                 {"error_default_p95_mm", stats_json(p95)},
                 {"error_calibrated_mm", stats_json(cal)},
+                {"orifice_mm2", stats_json(orifice)},
+                {"orifice_observed_mm2", stats_json(orifice_obs)},
                 {"ratings", rj}};
   };
   std::vector<const CohortPatient*> all;
@@ -436,7 +451,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   json perr = json::object();
   for (const auto& p : result.patients)
     for (const auto& [name, v] : p.fitted.items())
-      if (p.truth.contains(name)) perr[name].push_back(v.get<double>() - p.truth[name].get<double>());
+      if (p.truth.contains(name))
+        perr[name].push_back(v.get<double>() - p.truth[name].get<double>());
   for (auto& [name, v] : perr.items()) {
     std::vector<double> abs;
     for (const auto& x : v) abs.push_back(std::abs(x.get<double>()));
@@ -451,7 +467,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
 
 namespace {
 
-void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, const StudyFolder& folder) {
+void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
+                   const StudyFolder& folder) {
   json prov = detail::provenance(o.command, r.workers, r.wall_s);
   prov["seed"] = o.folder.empty() ? json(o.seed) : json(nullptr);
   bool any_synthetic = false, any_real = false;
@@ -494,23 +511,31 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
   strings("status", [](const CohortPatient& p) { return p.status; });
   strings("rating", [](const CohortPatient& p) { return p.rating; });
   numbers("error_default_mm", "mm", [](const CohortPatient& p) { return p.error_default_mm; });
-  numbers("error_default_sd_mm", "mm", [](const CohortPatient& p) { return p.error_default_sd_mm; });
-  numbers("error_default_p95_mm", "mm", [](const CohortPatient& p) { return p.error_default_p95_mm; });
-  numbers("error_calibrated_mm", "mm", [](const CohortPatient& p) { return p.error_calibrated_mm; });
+  numbers("error_default_sd_mm", "mm",
+          [](const CohortPatient& p) { return p.error_default_sd_mm; });
+  numbers("error_default_p95_mm", "mm",
+          [](const CohortPatient& p) { return p.error_default_p95_mm; });
+  numbers("error_calibrated_mm", "mm",
+          [](const CohortPatient& p) { return p.error_calibrated_mm; });
   numbers("orifice_mm2", "mm^2", [](const CohortPatient& p) { return p.orifice_mm2; });
+  numbers("orifice_observed_mm2", "mm^2",
+          [](const CohortPatient& p) { return p.orifice_observed_mm2; });
   numbers("coaptation_mm", "mm", [](const CohortPatient& p) { return p.coaptation_mm; });
   write_table_file(folder.path("study.h5"), t);
 
   // Plots.
   const json& s = r.summary;
-  auto mean_of = [](const json& st) { return st["mean"].is_number() ? st["mean"].get<double>() : kNaN; };
+  auto mean_of = [](const json& st) {
+    return st["mean"].is_number() ? st["mean"].get<double>() : kNaN;
+  };
   auto sd_of = [](const json& st) { return st["sd"].is_number() ? st["sd"].get<double>() : kNaN; };
   {
     Plot pl;
     pl.title = "Point-to-mesh error per patient";
     pl.x_label = "patient";
     pl.y_label = "mean error, mm";
-    PlotSeries d{"default parameters", {}, {}, false, true, {}}, c{"calibrated", {}, {}, false, true, {}};
+    PlotSeries d{"default parameters", {}, {}, false, true, {}},
+        c{"calibrated", {}, {}, false, true, {}};
     for (const auto& p : r.patients) {
       pl.categories.push_back(std::to_string(p.index));
       d.y.push_back(p.status == "ok" ? p.error_default_mm : kNaN);
@@ -525,7 +550,8 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
     Plot pl;
     pl.title = "Error by pathology (mean and SD)";
     pl.y_label = "mean error, mm";
-    PlotSeries d{"default parameters", {}, {}, false, true, {}}, c{"calibrated", {}, {}, false, true, {}};
+    PlotSeries d{"default parameters", {}, {}, false, true, {}},
+        c{"calibrated", {}, {}, false, true, {}};
     for (const auto& [name, v] : s["by_pathology"].items()) {
       pl.categories.push_back(name.rfind("prolapse_", 0) == 0 ? name.substr(9) : name);
       d.y.push_back(mean_of(v["error_default_mm"]));
@@ -548,7 +574,8 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
     const double ok = s["overall"]["patients"].get<double>() - s["overall"]["failed"].get<double>();
     for (int k = 0; k < 3; ++k) {
       pl.categories.push_back(kRatings[k]);
-      m.y.push_back(ok > 0 ? 100.0 * s["overall"]["ratings"][kRatings[k]].get<double>() / ok : kNaN);
+      m.y.push_back(ok > 0 ? 100.0 * s["overall"]["ratings"][kRatings[k]].get<double>() / ok
+                           : kNaN);
       p.y.push_back(100.0 * paper[k] / 25.0);
     }
     pl.series = {m, p};
@@ -559,40 +586,48 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
   Report rep("Cohort study: closure with default and calibrated parameters");
   rep.paragraph("Compared with " + std::string(kPaperCitation) + " (its Tables 2 and 3).");
   const int np = static_cast<int>(r.patients.size());
-  rep.paragraph(o.folder.empty()
-                    ? "**" + std::to_string(np) + " virtual patients (SYNTHETIC)** of cohort seed " +
-                          std::to_string(o.seed) +
-                          ", the pathologies in turn. Their observed closures were simulated by a finer "
-                          "model than the one compared (`" +
-                          std::to_string(o.observation.simulation.model.ures) + " x " +
-                          std::to_string(o.observation.simulation.model.vres) + "`, dt " +
-                          number(o.observation.simulation.dt, 4) + " s) with " +
-                          number(o.observation.noise_mm) + " mm detection-like noise."
-                    : std::to_string(np) + " patient files from `" + o.folder.string() + "`.");
-  rep.paragraph("Simulation model: " + std::to_string(o.model.model.ures) + " x " +
-                std::to_string(o.model.model.vres) + " grid, " + std::to_string(o.model.model.layers) +
-                " layer(s), dt " + number(o.model.dt, 4) + " s. Error: symmetric point-to-mesh distance "
-                "between the simulated and the observed closed leaflets (annulus row excluded), mm. " +
-                (o.calibrate ? "Calibration: " + o.fit + " by " + o.method + ", at most " +
-                                   std::to_string(o.max_simulations) + " simulations."
-                             : std::string("Not calibrated (default parameters only).")));
-  rep.paragraph("Closure rating (automatic, in place of the paper's visual one), from the simulated "
-                "closed valve: **satisfactory** when the orifice seen from the atrium is at most " +
-                number(o.rating.satisfactory_orifice_mm2, 1) + " mm^2 and the leaflets coapt over at least " +
-                number(o.rating.satisfactory_coaptation_mm, 1) + " mm; **unsatisfactory** when the orifice "
-                "exceeds " + number(o.rating.unsatisfactory_orifice_mm2, 1) +
-                " mm^2 or fewer than half the anterior columns coapt; **passable** otherwise.");
+  rep.paragraph(
+      o.folder.empty()
+          ? "**" + std::to_string(np) + " virtual patients (SYNTHETIC)** of cohort seed " +
+                std::to_string(o.seed) +
+                ", the pathologies in turn. Their observed closures were simulated by a finer "
+                "model than the one compared (`" +
+                std::to_string(o.observation.simulation.model.ures) + " x " +
+                std::to_string(o.observation.simulation.model.vres) + "`, dt " +
+                number(o.observation.simulation.dt, 4) + " s) with " +
+                number(o.observation.noise_mm) + " mm detection-like noise."
+          : std::to_string(np) + " patient files from `" + o.folder.string() + "`.");
+  rep.paragraph(
+      "Simulation model: " + std::to_string(o.model.model.ures) + " x " +
+      std::to_string(o.model.model.vres) + " grid, " + std::to_string(o.model.model.layers) +
+      " layer(s), dt " + number(o.model.dt, 4) +
+      " s. Error: symmetric point-to-mesh distance "
+      "between the simulated and the observed closed leaflets (annulus row excluded), mm. " +
+      (o.calibrate ? "Calibration: " + o.fit + " by " + o.method + ", at most " +
+                         std::to_string(o.max_simulations) + " simulations."
+                   : std::string("Not calibrated (default parameters only).")));
+  rep.paragraph(
+      "Closure rating (automatic, in place of the paper's visual one), from the simulated "
+      "closed valve: **satisfactory** when the orifice seen from the atrium is at most " +
+      number(o.rating.satisfactory_orifice_mm2, 1) + " mm^2 and the leaflets coapt over at least " +
+      number(o.rating.satisfactory_coaptation_mm, 1) +
+      " mm; **unsatisfactory** when the orifice "
+      "exceeds " +
+      number(o.rating.unsatisfactory_orifice_mm2, 1) +
+      " mm^2 or fewer than half the anterior columns coapt; **passable** otherwise.");
   rep.heading("mvtwin next to the paper");
   const json& ov = s["overall"];
   auto cell = [&](const json& st) { return mean_sd(mean_of(st), sd_of(st)); };
   std::vector<std::vector<std::string>> rows;
-  rows.push_back({"patients", std::to_string(np) + " (" + std::to_string(ov["failed"].get<int>()) + " failed)",
+  rows.push_back({"patients",
+                  std::to_string(np) + " (" + std::to_string(ov["failed"].get<int>()) + " failed)",
                   "25"});
   rows.push_back({"error, default parameters, mm", cell(ov["error_default_mm"]), "1.49 ± 0.62"});
   const char* paper_rating[] = {"7 (1.07 ± 0.36)", "9 (1.38 ± 0.31)", "9 (1.91 ± 0.77)"};
   for (int k = 0; k < 3; ++k) {
-    const json& br = s.contains("by_rating") && s["by_rating"].contains(kRatings[k]) ? s["by_rating"][kRatings[k]]
-                                                                                      : json();
+    const json& br = s.contains("by_rating") && s["by_rating"].contains(kRatings[k])
+                         ? s["by_rating"][kRatings[k]]
+                         : json();
     rows.push_back({std::string(kRatings[k]) + ": patients (error, mm)",
                     std::to_string(ov["ratings"][kRatings[k]].get<int>()) +
                         (br.is_null() ? "" : " (" + cell(br["error_default_mm"]) + ")"),
@@ -605,16 +640,22 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
   rep.heading("Per pathology");
   rows.clear();
   for (const auto& [name, v] : s["by_pathology"].items())
-    rows.push_back({name, std::to_string(v["patients"].get<int>()), cell(v["error_default_mm"]),
-                    cell(v["error_default_p95_mm"]), o.calibrate ? cell(v["error_calibrated_mm"]) : "-",
-                    std::to_string(v["ratings"]["satisfactory"].get<int>()) + " / " +
-                        std::to_string(v["ratings"]["passable"].get<int>()) + " / " +
-                        std::to_string(v["ratings"]["unsatisfactory"].get<int>())});
-  rep.table({"pathology", "patients", "error default, mm", "95th percentile, mm", "error calibrated, mm",
-             "satisfactory / passable / unsatisfactory"},
-            rows);
-  rep.figure("errors_by_pathology.png", "Mean point-to-mesh error by pathology (bars: SD over patients).");
-  rep.figure("ratings.png", "Closure ratings: mvtwin's automatic rating against the paper's visual one.");
+    rows.push_back(
+        {name, std::to_string(v["patients"].get<int>()), cell(v["error_default_mm"]),
+         cell(v["error_default_p95_mm"]), o.calibrate ? cell(v["error_calibrated_mm"]) : "-",
+         mean_sd(mean_of(v["orifice_mm2"]), sd_of(v["orifice_mm2"]), 1) + " (" +
+             mean_sd(mean_of(v["orifice_observed_mm2"]), sd_of(v["orifice_observed_mm2"]), 1) + ")",
+         std::to_string(v["ratings"]["satisfactory"].get<int>()) + " / " +
+             std::to_string(v["ratings"]["passable"].get<int>()) + " / " +
+             std::to_string(v["ratings"]["unsatisfactory"].get<int>())});
+  rep.table(
+      {"pathology", "patients", "error default, mm", "95th percentile, mm", "error calibrated, mm",
+       "orifice simulated (observed), mm^2", "satisfactory / passable / unsatisfactory"},
+      rows);
+  rep.figure("errors_by_pathology.png",
+             "Mean point-to-mesh error by pathology (bars: SD over patients).");
+  rep.figure("ratings.png",
+             "Closure ratings: mvtwin's automatic rating against the paper's visual one.");
   if (o.calibrate && !s["fitted_minus_truth_abs"].empty()) {
     rep.heading("Fitted parameters against the truth (virtual patients)");
     rows.clear();
@@ -628,11 +669,13 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
     rows.push_back({std::to_string(p.index), p.id, p.pathology,
                     p.status == "ok" ? number(p.error_default_mm) : "failed",
                     p.status == "ok" ? number(p.error_default_p95_mm) : "-",
-                    p.status == "ok" ? number(p.orifice_mm2, 1) : "-",
-                    p.status == "ok" ? number(p.coaptation_mm, 1) : "-", p.rating.empty() ? "-" : p.rating,
-                    number(p.error_calibrated_mm)});
-  rep.table({"#", "id", "pathology", "error, mm", "p95, mm", "orifice, mm^2", "coaptation, mm", "rating",
-             "calibrated, mm"},
+                    p.status == "ok"
+                        ? number(p.orifice_mm2, 1) + " (" + number(p.orifice_observed_mm2, 1) + ")"
+                        : "-",
+                    p.status == "ok" ? number(p.coaptation_mm, 1) : "-",
+                    p.rating.empty() ? "-" : p.rating, number(p.error_calibrated_mm)});
+  rep.table({"#", "id", "pathology", "error, mm", "p95, mm", "orifice (observed), mm^2",
+             "coaptation, mm", "rating", "calibrated, mm"},
             rows);
   rep.figure("errors_per_patient.png", "Point-to-mesh error per patient.");
   bool failures = false;
@@ -645,20 +688,23 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r, cons
   // Scaling: this run's per-patient work replayed on more ranks (dynamic balancing).
   std::vector<double> work;
   for (const auto& p : r.patients)
-    if (p.status == "ok" && p.default_s + p.calibrate_s > 0) work.push_back(p.default_s + p.calibrate_s);
+    if (p.status == "ok" && p.default_s + p.calibrate_s > 0)
+      work.push_back(p.default_s + p.calibrate_s);
   if (work.size() >= 2) {
     rep.heading("Scaling over MPI ranks (expected)");
     const detail::Stats ws = detail::stats(work);
-    rep.paragraph("Per-patient work in this run (default simulation" +
-                  std::string(o.calibrate ? " and calibration" : "") + "): " + mean_sd(ws.mean, ws.sd, 1) +
-                  " s (min " + number(*std::min_element(work.begin(), work.end()), 1) + ", max " +
-                  number(*std::max_element(work.begin(), work.end()), 1) +
-                  "). Replaying cohorts drawn from these times on ranks that each take the next patient "
-                  "when free gives the parallel efficiency below (mean of 20 draws; 1 = no rank waits).");
+    rep.paragraph(
+        "Per-patient work in this run (default simulation" +
+        std::string(o.calibrate ? " and calibration" : "") + "): " + mean_sd(ws.mean, ws.sd, 1) +
+        " s (min " + number(*std::min_element(work.begin(), work.end()), 1) + ", max " +
+        number(*std::max_element(work.begin(), work.end()), 1) +
+        "). Replaying cohorts drawn from these times on ranks that each take the next patient "
+        "when free gives the parallel efficiency below (mean of 20 draws; 1 = no rank waits).");
     rows.clear();
     for (int ranks : {2, 10, 100, 1000}) {
       std::vector<std::string> row{std::to_string(ranks)};
-      for (int n : {100, 1000, 10000}) row.push_back(number(expected_efficiency(work, n, ranks), 3));
+      for (int n : {100, 1000, 10000})
+        row.push_back(number(expected_efficiency(work, n, ranks), 3));
       rows.push_back(row);
     }
     rep.table({"ranks", "100 patients", "1,000 patients", "10,000 patients"}, rows);

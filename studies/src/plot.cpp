@@ -15,7 +15,7 @@ namespace mvtwin::studies {
 namespace {
 
 // A colour-blind-safe palette (Okabe-Ito), BGR.
-const cv::Scalar kPalette[] = {{178, 114, 0},  {0, 159, 230}, {115, 158, 0}, {0, 94, 213},
+const cv::Scalar kPalette[] = {{178, 114, 0},   {0, 159, 230},  {115, 158, 0},  {0, 94, 213},
                                {167, 121, 204}, {233, 180, 86}, {66, 228, 240}, {0, 0, 0}};
 const int kFont = cv::FONT_HERSHEY_SIMPLEX;
 
@@ -23,10 +23,14 @@ std::string tick_text(double v) {
   char s[32];
   const double a = std::abs(v);
   if (v == 0) return "0";
-  if (a >= 1e4 || a < 1e-3) std::snprintf(s, sizeof s, "%.0e", v);
-  else if (a >= 100 || std::abs(v - std::round(v)) < 1e-9) std::snprintf(s, sizeof s, "%.0f", v);
-  else if (a >= 1) std::snprintf(s, sizeof s, "%.3g", v);
-  else std::snprintf(s, sizeof s, "%.2g", v);
+  if (a >= 1e4 || a < 1e-3)
+    std::snprintf(s, sizeof s, "%.0e", v);
+  else if (a >= 100 || std::abs(v - std::round(v)) < 1e-9)
+    std::snprintf(s, sizeof s, "%.0f", v);
+  else if (a >= 1)
+    std::snprintf(s, sizeof s, "%.3g", v);
+  else
+    std::snprintf(s, sizeof s, "%.2g", v);
   return s;
 }
 
@@ -160,8 +164,10 @@ void Plot::write_png(const std::filesystem::path& path) const {
       // Shrink a label until it fits its slot (no overlapping names).
       double scale = 0.45;
       int base = 0;
-      while (scale > 0.25 && cv::getTextSize(categories[i], kFont, scale, 1, &base).width > slot) scale -= 0.02;
-      text(img, categories[i], {px(static_cast<double>(i), ay.lo).x, box.y + box.height + 20}, scale, 0);
+      while (scale > 0.25 && cv::getTextSize(categories[i], kFont, scale, 1, &base).width > slot)
+        scale -= 0.02;
+      text(img, categories[i], {px(static_cast<double>(i), ay.lo).x, box.y + box.height + 20},
+           scale, 0);
     }
   } else {
     for (double t : ax.ticks()) {
@@ -181,7 +187,8 @@ void Plot::write_png(const std::filesystem::path& path) const {
     cv::Mat r;
     cv::rotate(t, r, cv::ROTATE_90_COUNTERCLOCKWISE);
     const int y0 = std::max(0, box.y + box.height / 2 - r.rows / 2);
-    if (y0 + r.rows <= height && 10 + r.cols <= width) r.copyTo(img(cv::Rect(10, y0, r.cols, r.rows)));
+    if (y0 + r.rows <= height && 10 + r.cols <= width)
+      r.copyTo(img(cv::Rect(10, y0, r.cols, r.rows)));
   }
   for (const auto& [v, l] : h_lines) {
     const cv::Point a = px(ax.lo, v), b = px(ax.hi, v);

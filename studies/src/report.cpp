@@ -15,11 +15,20 @@ std::string escape(const std::string& s) {
   std::string o;
   for (char c : s) {
     switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
+      case '&':
+        o += "&amp;";
+        break;
+      case '<':
+        o += "&lt;";
+        break;
+      case '>':
+        o += "&gt;";
+        break;
+      case '"':
+        o += "&quot;";
+        break;
+      default:
+        o += c;
     }
   }
   return o;
@@ -52,7 +61,8 @@ std::string base64(const std::string& in) {
   std::size_t i = 0;
   for (; i + 2 < in.size(); i += 3) {
     const unsigned v = (static_cast<unsigned char>(in[i]) << 16) |
-                       (static_cast<unsigned char>(in[i + 1]) << 8) | static_cast<unsigned char>(in[i + 2]);
+                       (static_cast<unsigned char>(in[i + 1]) << 8) |
+                       static_cast<unsigned char>(in[i + 2]);
     o += t[v >> 18];
     o += t[(v >> 12) & 63];
     o += t[(v >> 6) & 63];
@@ -80,7 +90,9 @@ void write_text(const std::filesystem::path& path, const std::string& text) {
 
 }  // namespace
 
-void Report::heading(const std::string& text) { blocks_.push_back({Block::kHeading, text, {}, {}, {}}); }
+void Report::heading(const std::string& text) {
+  blocks_.push_back({Block::kHeading, text, {}, {}, {}});
+}
 void Report::paragraph(const std::string& text) {
   blocks_.push_back({Block::kParagraph, text, {}, {}, {}});
 }

@@ -40,7 +40,8 @@ double expected_efficiency(const std::vector<double>& measured, int patients, in
   std::vector<double> draw(static_cast<std::size_t>(patients));
   for (int k = 0; k < trials; ++k) {
     for (double& t : draw)
-      t = measured[static_cast<std::size_t>(rng.uniform_int(0, static_cast<int>(measured.size()) - 1))];
+      t = measured[static_cast<std::size_t>(
+          rng.uniform_int(0, static_cast<int>(measured.size()) - 1))];
     sum += dynamic_efficiency(draw, ranks);
   }
   return sum / trials;

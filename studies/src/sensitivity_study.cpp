@@ -18,8 +18,8 @@
 
 namespace mvtwin::studies {
 namespace fs = std::filesystem;
-using nlohmann::json;
 using detail::kNaN;
+using nlohmann::json;
 
 std::vector<SensitivityCase> sensitivity_cases() {
   std::vector<SensitivityCase> c;
@@ -33,9 +33,13 @@ std::vector<SensitivityCase> sensitivity_cases() {
   add("baseline", "baseline", {});
   add("motion", "annulus fixed", {"annulus_motion=off"});
   add("motion", "papillary tips fixed", {"papillary_motion=off"});
-  for (int m : {56, 20, 16, 12}) add("marginal chordae", std::to_string(m) + " marginal chordae", {"marginal_chordae=" + std::to_string(m)});
-  add("chordae stiffness", "stiffness -30 %", {"marginal_stiffness_scale=0.7", "basal_stiffness_scale=0.7"});
-  add("chordae stiffness", "stiffness +30 %", {"marginal_stiffness_scale=1.3", "basal_stiffness_scale=1.3"});
+  for (int m : {56, 20, 16, 12})
+    add("marginal chordae", std::to_string(m) + " marginal chordae",
+        {"marginal_chordae=" + std::to_string(m)});
+  add("chordae stiffness", "stiffness -30 %",
+      {"marginal_stiffness_scale=0.7", "basal_stiffness_scale=0.7"});
+  add("chordae stiffness", "stiffness +30 %",
+      {"marginal_stiffness_scale=1.3", "basal_stiffness_scale=1.3"});
   add("rest length", "rest lengths -30 %", {"restlength=0.7"});
   add("rest length", "rest lengths +30 %", {"restlength=1.3"});
   return c;
@@ -48,7 +52,8 @@ bool SensitivityStudyOptions::is_valid(std::string* error) const {
   };
   if (out.empty()) return fail("sensitivity study: no output folder (--out)");
   if (patient < 0) return fail("sensitivity study: negative patient index");
-  if (!(sample_s > 0) || sample_s > 1) return fail("sensitivity study: sample_s must be in (0, 1] s");
+  if (!(sample_s > 0) || sample_s > 1)
+    return fail("sensitivity study: sample_s must be in (0, 1] s");
   if (jobs < 1 || jobs > 256) return fail("sensitivity study: jobs must be 1 to 256");
   std::string e;
   if (!model.is_valid(&e)) return fail("sensitivity study: " + e);
@@ -65,8 +70,10 @@ SensitivityStudyOptions SensitivityStudyOptions::quick() {
 
 json SensitivityStudyOptions::config() const {
   json c{{"model", detail::describe(model)}, {"sample_s", sample_s}};
-  if (patient_file.empty()) c.update({{"seed", seed}, {"patient", patient}});
-  else c["patient_file"] = fs::absolute(patient_file).lexically_normal().string();
+  if (patient_file.empty())
+    c.update({{"seed", seed}, {"patient", patient}});
+  else
+    c["patient_file"] = fs::absolute(patient_file).lexically_normal().string();
   return c;
 }
 
@@ -120,11 +127,13 @@ double interpolate(const std::vector<double>& t, const std::vector<double>& y, d
 double max_difference(const std::vector<double>& t, const std::vector<double>& y,
                       const std::vector<double>& bt, const std::vector<double>& by) {
   double m = 0;
-  for (std::size_t i = 0; i < t.size(); ++i) m = std::max(m, std::abs(y[i] - interpolate(bt, by, t[i])));
+  for (std::size_t i = 0; i < t.size(); ++i)
+    m = std::max(m, std::abs(y[i] - interpolate(bt, by, t[i])));
   return m;
 }
 
-void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResult& r, const StudyFolder& f);
+void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResult& r,
+                   const StudyFolder& f);
 
 }  // namespace
 
@@ -133,9 +142,11 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
   if (!o.is_valid(&err)) throw Error(err);
   const auto t0 = std::chrono::steady_clock::now();
   std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), true);
+  if (pool.is_root())
+    folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), true);
   pool.barrier();
-  if (!pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), false);
+  if (!pool.is_root())
+    folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), false);
 
   Patient patient;
   ValveParameters baseline;
@@ -149,7 +160,8 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
   }
   model.progress = nullptr;
   // Record every sample_s of observed time (the simulated closure is `stretch` times longer).
-  model.record_every = std::max(1, static_cast<int>(std::lround(o.sample_s * model.stretch / model.dt)));
+  model.record_every =
+      std::max(1, static_cast<int>(std::lround(o.sample_s * model.stretch / model.dt)));
 
   std::vector<SensitivityCase> cases = sensitivity_cases();
   const int n = static_cast<int>(cases.size());
@@ -175,7 +187,8 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
         if (s.rfind("restlength=", 0) == 0) {  // every rest-length factor times this
           const double f = std::stod(s.substr(11));
           for (double& x : par.restlength_factor) x *= f;
-        } else if (s.rfind("marginal_stiffness_scale=", 0) == 0 || s.rfind("basal_stiffness_scale=", 0) == 0) {
+        } else if (s.rfind("marginal_stiffness_scale=", 0) == 0 ||
+                   s.rfind("basal_stiffness_scale=", 0) == 0) {
           const double f = std::stod(s.substr(s.find('=') + 1));
           (s[0] == 'm' ? par.marginal_stiffness_scale : par.basal_stiffness_scale) *= f;
         } else {
@@ -183,7 +196,8 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
         }
       }
       // A rupture names marginal chordae by index: with another count it has no meaning.
-      if (m.model.marginal_chordae != model.model.marginal_chordae) m.ruptured_marginal_chordae.clear();
+      if (m.model.marginal_chordae != model.model.marginal_chordae)
+        m.ruptured_marginal_chordae.clear();
       const forward::ClosureResult r = forward::simulate_closure(patient.sequence, par, m);
       if (r.summary.status != forward::ClosureStatus::kConverged) throw Error(r.summary.reason);
       for (const auto& s : r.samples) {
@@ -202,7 +216,8 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
     const json j = case_json(k);
     folder->save_record(name, j);
     ++done;
-    report(k.label + (k.status == "ok" ? ": " + number(k.wall_s, 1) + " s" : ": failed: " + k.reason));
+    report(k.label +
+           (k.status == "ok" ? ": " + number(k.wall_s, 1) + " s" : ": failed: " + k.reason));
     return j.dump();
   });
 
@@ -216,8 +231,10 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
       k.max_anterior_diff_mm = k.max_posterior_diff_mm = kNaN;
       continue;
     }
-    k.max_anterior_diff_mm = max_difference(k.time_s, k.anterior_tip_mm, b.time_s, b.anterior_tip_mm);
-    k.max_posterior_diff_mm = max_difference(k.time_s, k.posterior_tip_mm, b.time_s, b.posterior_tip_mm);
+    k.max_anterior_diff_mm =
+        max_difference(k.time_s, k.anterior_tip_mm, b.time_s, b.anterior_tip_mm);
+    k.max_posterior_diff_mm =
+        max_difference(k.time_s, k.posterior_tip_mm, b.time_s, b.posterior_tip_mm);
   }
   res.workers = pool.describe();
   res.wall_s = detail::seconds_since(t0);
@@ -235,18 +252,24 @@ struct PaperFigure {
   const char* pl;
 };
 const PaperFigure kPaper[] = {
-    {"motion", "annulus fixed: the valve no longer closes; papillary tips fixed: the AL billows into the atrium", ""},
+    {"motion",
+     "annulus fixed: the valve no longer closes; papillary tips fixed: the AL billows into the "
+     "atrium",
+     ""},
     {"marginal chordae", "<= 1.65", "<= 0.64"},
     {"chordae stiffness", "<= 0.44", "<= 0.46"},
     {"rest length", "10.03", "3.87"},
 };
 
-void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResult& r, const StudyFolder& f) {
+void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResult& r,
+                   const StudyFolder& f) {
   json cases = json::array();
   for (const auto& k : r.cases) {
     json j = case_json(k);
-    j["max_anterior_diff_mm"] = std::isfinite(k.max_anterior_diff_mm) ? json(k.max_anterior_diff_mm) : json(nullptr);
-    j["max_posterior_diff_mm"] = std::isfinite(k.max_posterior_diff_mm) ? json(k.max_posterior_diff_mm) : json(nullptr);
+    j["max_anterior_diff_mm"] =
+        std::isfinite(k.max_anterior_diff_mm) ? json(k.max_anterior_diff_mm) : json(nullptr);
+    j["max_posterior_diff_mm"] =
+        std::isfinite(k.max_posterior_diff_mm) ? json(k.max_posterior_diff_mm) : json(nullptr);
     cases.push_back(j);
   }
   json prov = detail::provenance(o.command, r.workers, r.wall_s);
@@ -260,10 +283,14 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
                                     {"cases", cases}});
   TableFile t;
   t.format = "mvtwin-sensitivity-study";
-  t.attributes = {{"mvtwin_version", kVersion}, {"command", o.command}, {"patient", r.patient_id},
-                  {"synthetic", r.synthetic ? "1" : "0"}, {"config", o.config().dump()}};
-  TableColumn label{"case", "", {}, {}}, group{"group", "", {}, {}}, al{"max_anterior_diff_mm", "mm", {}, {}},
-      pl{"max_posterior_diff_mm", "mm", {}, {}}, orifice{"end_orifice_mm2", "mm^2", {}, {}};
+  t.attributes = {{"mvtwin_version", kVersion},
+                  {"command", o.command},
+                  {"patient", r.patient_id},
+                  {"synthetic", r.synthetic ? "1" : "0"},
+                  {"config", o.config().dump()}};
+  TableColumn label{"case", "", {}, {}}, group{"group", "", {}, {}},
+      al{"max_anterior_diff_mm", "mm", {}, {}}, pl{"max_posterior_diff_mm", "mm", {}, {}},
+      orifice{"end_orifice_mm2", "mm^2", {}, {}};
   for (const auto& k : r.cases) {
     label.strings.push_back(k.label);
     group.strings.push_back(k.group);
@@ -276,12 +303,14 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
 
   Report rep("Sensitivity study: what moves the leaflet tips");
   rep.paragraph("Compared with " + std::string(kPaperCitation) + " (its Sec. 4.2 and Figs 13-14).");
-  rep.paragraph("Patient `" + r.patient_id + "`" + (r.synthetic ? " (SYNTHETIC, its hidden parameters as the baseline)" : "") +
-                "; model " + std::to_string(o.model.model.ures) + " x " + std::to_string(o.model.model.vres) + ", " +
-                std::to_string(o.model.model.layers) + " layer(s), dt " + number(o.model.dt, 4) +
-                " s. Tip: the signed distance of each leaflet's tip (the middle of its free edge) to the "
-                "annulus plane, positive towards the atrium, over the image clock; difference: the largest "
-                "over time against the baseline.");
+  rep.paragraph(
+      "Patient `" + r.patient_id + "`" +
+      (r.synthetic ? " (SYNTHETIC, its hidden parameters as the baseline)" : "") + "; model " +
+      std::to_string(o.model.model.ures) + " x " + std::to_string(o.model.model.vres) + ", " +
+      std::to_string(o.model.model.layers) + " layer(s), dt " + number(o.model.dt, 4) +
+      " s. Tip: the signed distance of each leaflet's tip (the middle of its free edge) to the "
+      "annulus plane, positive towards the atrium, over the image clock; difference: the largest "
+      "over time against the baseline.");
   rep.heading("mvtwin next to the paper");
   std::vector<std::vector<std::string>> rows;
   for (const auto& k : r.cases) {
@@ -292,14 +321,17 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
         paper_pl = p.pl;
       }
     if (k.group == "motion") paper_pl = "";
-    rows.push_back({k.label, k.status == "ok" ? number(k.max_anterior_diff_mm) : "failed: " + k.reason,
-                    k.status == "ok" ? number(k.max_posterior_diff_mm) : "-",
-                    k.status == "ok" ? number(k.end_anterior_tip_mm, 1) + " / " + number(k.end_posterior_tip_mm, 1) : "-",
-                    k.status == "ok" ? number(k.end_orifice_mm2, 1) : "-", k.group == "baseline" ? "" : paper_al,
-                    k.group == "baseline" ? "" : paper_pl});
+    rows.push_back(
+        {k.label, k.status == "ok" ? number(k.max_anterior_diff_mm) : "failed: " + k.reason,
+         k.status == "ok" ? number(k.max_posterior_diff_mm) : "-",
+         k.status == "ok"
+             ? number(k.end_anterior_tip_mm, 1) + " / " + number(k.end_posterior_tip_mm, 1)
+             : "-",
+         k.status == "ok" ? number(k.end_orifice_mm2, 1) : "-",
+         k.group == "baseline" ? "" : paper_al, k.group == "baseline" ? "" : paper_pl});
   }
-  rep.table({"case", "max AL tip difference, mm", "max PL tip difference, mm", "end tips AL / PL, mm",
-             "end orifice, mm^2", "paper AL", "paper PL"},
+  rep.table({"case", "max AL tip difference, mm", "max PL tip difference, mm",
+             "end tips AL / PL, mm", "end orifice, mm^2", "paper AL", "paper PL"},
             rows);
   for (const char* g : {"motion", "marginal chordae", "chordae stiffness", "rest length"}) {
     for (int leaflet = 0; leaflet < 2; ++leaflet) {
@@ -309,7 +341,12 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
       fig.y_label = "tip to annulus plane, mm (+ atrial)";
       for (const auto& k : r.cases) {
         if (k.status != "ok" || (k.group != g && k.group != "baseline")) continue;
-        fig.series.push_back({k.label, k.time_s, leaflet == 0 ? k.anterior_tip_mm : k.posterior_tip_mm, true, false, {}});
+        fig.series.push_back({k.label,
+                              k.time_s,
+                              leaflet == 0 ? k.anterior_tip_mm : k.posterior_tip_mm,
+                              true,
+                              false,
+                              {}});
       }
       if (fig.series.empty()) continue;
       fig.h_lines.push_back({0.0, "annulus plane"});
@@ -321,7 +358,8 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
   }
   rep.heading("How this was made");
   rep.code(o.command.empty() ? "(library call)" : o.command);
-  rep.paragraph("mvtwin " + std::string(kVersion) + ", " + r.workers + ", " + number(r.wall_s, 0) + " s wall time.");
+  rep.paragraph("mvtwin " + std::string(kVersion) + ", " + r.workers + ", " + number(r.wall_s, 0) +
+                " s wall time.");
   rep.write(f.dir());
 }
 

@@ -38,12 +38,13 @@ StudyFolder::StudyFolder(std::filesystem::path dir, std::string kind, nlohmann::
                   "); remove the folder or choose another --out");
     }
     if (old.value("study", "") != kind_)
-      throw Error(dir_.string() + ": holds a '" + old.value("study", "?") + "' study, not '" + kind_ +
-                  "'; choose another --out");
+      throw Error(dir_.string() + ": holds a '" + old.value("study", "?") + "' study, not '" +
+                  kind_ + "'; choose another --out");
     if (old["config"] != config_) {
       std::string diff;
       for (const auto& [k, v] : config_.items())
-        if (!old["config"].contains(k) || old["config"][k] != v) diff += (diff.empty() ? "" : ", ") + k;
+        if (!old["config"].contains(k) || old["config"][k] != v)
+          diff += (diff.empty() ? "" : ", ") + k;
       for (const auto& [k, v] : old["config"].items())
         if (!config_.contains(k)) diff += (diff.empty() ? "" : ", ") + k;
       throw Error(dir_.string() + ": holds this study with other settings (" + diff +

@@ -47,7 +47,9 @@ Stats stats(const std::vector<double>& v) {
 nlohmann::json stats_json(const std::vector<double>& v) {
   const Stats s = stats(v);
   using nlohmann::json;
-  return {{"n", s.n}, {"mean", s.n ? json(s.mean) : json(nullptr)}, {"sd", s.n ? json(s.sd) : json(nullptr)}};
+  return {{"n", s.n},
+          {"mean", s.n ? json(s.mean) : json(nullptr)},
+          {"sd", s.n ? json(s.sd) : json(nullptr)}};
 }
 
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s) {

@@ -19,7 +19,8 @@ void check(int rc, const char* what) {
     char msg[MPI_MAX_ERROR_STRING];
     int len = 0;
     MPI_Error_string(rc, msg, &len);
-    throw Error(std::string("MPI: ") + what + " failed: " + std::string(msg, static_cast<std::size_t>(len)));
+    throw Error(std::string("MPI: ") + what +
+                " failed: " + std::string(msg, static_cast<std::size_t>(len)));
   }
 }
 
@@ -96,7 +97,8 @@ class MpiPool final : public WorkPool {
     }
     int len = static_cast<int>(packed.size());
     std::vector<int> lens(static_cast<std::size_t>(size_)), displs(static_cast<std::size_t>(size_));
-    check(MPI_Allgather(&len, 1, MPI_INT, lens.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Allgather");
+    check(MPI_Allgather(&len, 1, MPI_INT, lens.data(), 1, MPI_INT, MPI_COMM_WORLD),
+          "MPI_Allgather");
     std::size_t total = 0;
     for (int r = 0; r < size_; ++r) {
       displs[static_cast<std::size_t>(r)] = static_cast<int>(total);

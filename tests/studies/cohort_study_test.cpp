@@ -53,8 +53,9 @@ class CohortStudy : public ::testing::Test {
 json numbers_of(const json& study) {
   json out = json::array();
   for (const auto& p : study["patients"])
-    out.push_back({p["id"], p["pathology"], p["status"], p["error_default_mm"], p["error_default_p95_mm"],
-                   p["orifice_mm2"], p["coaptation_mm"], p["rating"], p["error_calibrated_mm"]});
+    out.push_back({p["id"], p["pathology"], p["status"], p["error_default_mm"],
+                   p["error_default_p95_mm"], p["orifice_mm2"], p["coaptation_mm"], p["rating"],
+                   p["error_calibrated_mm"]});
   return out;
 }
 
@@ -87,7 +88,8 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
   EXPECT_EQ(j["provenance"]["seed"].get<std::uint64_t>(), o.seed);
   std::set<std::string> pathologies;
   for (const auto& p : j["patients"]) {
-    for (const char* k : {"id", "pathology", "status", "error_default_mm", "error_calibrated_mm", "rating"})
+    for (const char* k :
+         {"id", "pathology", "status", "error_default_mm", "error_calibrated_mm", "rating"})
       EXPECT_TRUE(p.contains(k)) << k;
     EXPECT_EQ(p["status"], "ok") << p.dump();
     const double e = p["error_default_mm"].get<double>();
@@ -97,7 +99,8 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
     EXPECT_LT(e, 5.0);
     EXPECT_GE(p["error_default_p95_mm"].get<double>(), e);
     EXPECT_TRUE(p["error_calibrated_mm"].is_null());  // not calibrated in the quick size
-    EXPECT_TRUE(p["rating"] == "satisfactory" || p["rating"] == "passable" || p["rating"] == "unsatisfactory");
+    EXPECT_TRUE(p["rating"] == "satisfactory" || p["rating"] == "passable" ||
+                p["rating"] == "unsatisfactory");
     pathologies.insert(p["pathology"].get<std::string>());
   }
   EXPECT_EQ(pathologies.size(), 3u);  // the pathologies in turn
@@ -110,7 +113,8 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
   ASSERT_NE(err, nullptr);
   ASSERT_EQ(err->numbers.size(), 3u);
   for (int i = 0; i < 3; ++i)
-    EXPECT_DOUBLE_EQ(err->numbers[static_cast<std::size_t>(i)], j["patients"][i]["error_default_mm"].get<double>());
+    EXPECT_DOUBLE_EQ(err->numbers[static_cast<std::size_t>(i)],
+                     j["patients"][i]["error_default_mm"].get<double>());
   EXPECT_EQ(err->units, "mm");
   // The report cites the paper and shows its plots.
   std::ifstream md(o.out / "report.md");
@@ -122,7 +126,8 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
     EXPECT_GT(fs::file_size(o.out / png), 1000u) << png;
     EXPECT_NE(s.str().find(png), std::string::npos) << png;
   }
-  EXPECT_GT(fs::file_size(o.out / "report.html"), fs::file_size(o.out / "ratings.png"));  // embedded
+  EXPECT_GT(fs::file_size(o.out / "report.html"),
+            fs::file_size(o.out / "ratings.png"));  // embedded
   EXPECT_EQ(r.patients.size(), 3u);
 }
 
@@ -165,7 +170,8 @@ TEST_F(CohortStudy, BadPatientFileIsRecordedAndTheOthersGoOn) {
   auto pool = make_local_pool();
   run_cohort_study(v, *pool);
   fs::create_directories(dir_ / "folder");
-  for (const auto& f : fs::directory_iterator(v.out / "observed")) fs::copy(f.path(), dir_ / "folder" / "a.h5");
+  for (const auto& f : fs::directory_iterator(v.out / "observed"))
+    fs::copy(f.path(), dir_ / "folder" / "a.h5");
   {
     std::ofstream bad(dir_ / "folder" / "b.h5");
     bad << "not an HDF5 file";
@@ -180,8 +186,9 @@ TEST_F(CohortStudy, BadPatientFileIsRecordedAndTheOthersGoOn) {
   EXPECT_NE(r.patients[1].reason.find("b.h5"), std::string::npos) << r.patients[1].reason;
   EXPECT_EQ(r.summary["overall"]["failed"].get<int>(), 1);
   // The same patient gives the same error read from a folder as in the virtual cohort.
-  EXPECT_DOUBLE_EQ(r.patients[0].error_default_mm,
-                   read_json(v.out / "study.json")["patients"][0]["error_default_mm"].get<double>());
+  EXPECT_DOUBLE_EQ(
+      r.patients[0].error_default_mm,
+      read_json(v.out / "study.json")["patients"][0]["error_default_mm"].get<double>());
 }
 
 TEST_F(CohortStudy, InvalidOptionsAreRefused) {
@@ -206,15 +213,18 @@ std::string slurp(const fs::path& p) {
 
 TEST_F(CohortStudy, TwoMpiRanksGiveTheSingleProcessNumbers) {
   if (!built_with_mpi()) GTEST_SKIP() << "this build has no MPI (libopenmpi-dev not found)";
-  if (std::system("command -v mpirun > /dev/null 2>&1") != 0) GTEST_SKIP() << "no mpirun on this machine";
+  if (std::system("command -v mpirun > /dev/null 2>&1") != 0)
+    GTEST_SKIP() << "no mpirun on this machine";
   // Open MPI refuses root without these; its own allocations at exit are not ours to check.
   const std::string env =
-      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none "
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "OMPI_MCA_btl_vader_single_copy_mechanism=none "
       "ASAN_OPTIONS=detect_leaks=0 ";
-  const std::string common = " study cohort --quick --patients 4 --jobs 1 --cache " + (dir_ / "obs").string();
+  const std::string common =
+      " study cohort --quick --patients 4 --jobs 1 --cache " + (dir_ / "obs").string();
   const std::string one = std::string(MVTWIN_BINARY) + common + " --out " + (dir_ / "one").string();
-  const std::string two = env + "mpirun -np 2 --oversubscribe " + std::string(MVTWIN_BINARY) + common +
-                          " --out " + (dir_ / "two").string();
+  const std::string two = env + "mpirun -np 2 --oversubscribe " + std::string(MVTWIN_BINARY) +
+                          common + " --out " + (dir_ / "two").string();
   const std::string log = (dir_ / "log.txt").string();
   ASSERT_EQ(std::system((one + " > " + log + " 2>&1").c_str()), 0) << slurp(log);
   const int rc = std::system((two + " > " + log + " 2>&1").c_str());

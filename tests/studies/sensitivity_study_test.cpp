@@ -46,12 +46,14 @@ TEST(SensitivityStudy, QuickStudyMeasuresEveryCaseAgainstTheBaselineAndResumes) 
   for (const auto& k : r.cases) {
     if (k.label == "baseline") continue;
     EXPECT_GT(std::max(k.max_anterior_diff_mm, k.max_posterior_diff_mm), 0.01) << k.label;
-    EXPECT_NEAR(k.anterior_tip_mm.front(), r.cases.front().anterior_tip_mm.front(), 1e-9) << k.label;
+    EXPECT_NEAR(k.anterior_tip_mm.front(), r.cases.front().anterior_tip_mm.front(), 1e-9)
+        << k.label;
   }
   // The paper's finding (Sec. 4.2): rest lengths +-30 % matter far more than stiffness +-30 %.
   for (const char* rl : {"rest lengths -30 %", "rest lengths +30 %"})
     for (const char* st : {"stiffness -30 %", "stiffness +30 %"})
-      EXPECT_GT(find(r, rl).max_anterior_diff_mm, 3.0 * find(r, st).max_anterior_diff_mm) << rl << " vs " << st;
+      EXPECT_GT(find(r, rl).max_anterior_diff_mm, 3.0 * find(r, st).max_anterior_diff_mm)
+          << rl << " vs " << st;
   // Shorter chordae hold the anterior tip further into the ventricle.
   EXPECT_LT(find(r, "rest lengths -30 %").end_anterior_tip_mm, r.cases.front().end_anterior_tip_mm);
   EXPECT_GT(find(r, "rest lengths +30 %").end_anterior_tip_mm, r.cases.front().end_anterior_tip_mm);
@@ -63,7 +65,9 @@ TEST(SensitivityStudy, QuickStudyMeasuresEveryCaseAgainstTheBaselineAndResumes) 
 
   // Resumed: nothing simulated again, the same curves.
   int resumed = 0;
-  o.progress = [&](const StudyEvent& e) { resumed += e.message.find("resumed") != std::string::npos; };
+  o.progress = [&](const StudyEvent& e) {
+    resumed += e.message.find("resumed") != std::string::npos;
+  };
   const SensitivityStudyResult again = run_sensitivity_study(o, *pool);
   EXPECT_EQ(resumed, static_cast<int>(r.cases.size()));
   EXPECT_EQ(again.cases[3].anterior_tip_mm, r.cases[3].anterior_tip_mm);

@@ -383,3 +383,30 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
 }
 
 }  // namespace
+
+TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
+  // A patient parameter given as a model option is refused, not dropped.
+  CmdResult r = run("study cohort --quick --patients 1 --observe-set peak_pressure_mmhg=80 --out " + path("c"));
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("c") + "/study.json"));
+  r = run("study sensitivity --quick --set restlength_factor_anterolateral_marginal=1.1 --out " + path("s"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  r = run("study cohort --quick --set no_such_option=1 --out " + path("c"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("no_such_option"), std::string::npos) << r.err;
+  r = run("study cohort --quick --method newton --out " + path("c"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("newton"), std::string::npos) << r.err;
+  r = run("study nonsense --out " + path("c"));
+  EXPECT_NE(r.code, 0);
+}
+
+TEST_F(Cli, QuickCohortStudyPrintsItsTableNextToThePaper) {
+  const CmdResult r = run("study cohort --quick --patients 2 --out " + path("c"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("paper (25 patients)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("SYNTHETIC"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(path("c") + "/report.html"));
+}

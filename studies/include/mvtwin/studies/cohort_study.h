@@ -46,8 +46,8 @@ struct CohortStudyOptions {
   /// the 0.5 mm observation noise, and it stays finer than the calibration model (dt 0.01 s).
   forward::VirtualClosureOptions observation = study_observation();
   static forward::VirtualClosureOptions study_observation();
-  forward::ClosureOptions model;               ///< the calibration model
-  ValveParameters defaults;                    ///< the default parameters (the start)
+  forward::ClosureOptions model;  ///< the calibration model
+  ValveParameters defaults;       ///< the default parameters (the start)
   bool calibrate = true;
   std::string fit = "restlength,stiffness,pressure";
   std::string method = "bobyqa";
@@ -74,10 +74,12 @@ struct CohortPatient {
   bool synthetic = false;
   std::string status = "ok";  ///< "ok", or "failed" with `reason`
   std::string reason;
-  double observe_s = 0;       ///< the observed closure's simulation (0 when cached or real)
+  double observe_s = 0;  ///< the observed closure's simulation (0 when cached or real)
   // default parameters
   double error_default_mm = 0, error_default_sd_mm = 0, error_default_p95_mm = 0;
   double orifice_mm2 = 0, coaptation_mm = 0, coapting_fraction = 0;
+  /// The observed closed frame's orifice, mm^2 (what the simulated one is rated beside).
+  double orifice_observed_mm2 = 0;
   std::string rating;
   double default_s = 0;
   // calibration (NaN when not calibrated)

@@ -14,7 +14,8 @@ class Report {
   void heading(const std::string& text);
   /// Markdown inline code (`x`) and bold (**x**) are rendered in HTML too.
   void paragraph(const std::string& text);
-  void table(const std::vector<std::string>& header, const std::vector<std::vector<std::string>>& rows);
+  void table(const std::vector<std::string>& header,
+             const std::vector<std::vector<std::string>>& rows);
   /// A PNG beside the report (file name relative to the report's folder).
   void figure(const std::string& png, const std::string& caption);
   /// A verbatim block (commands).

@@ -60,6 +60,7 @@ std::vector<SensitivityCase> sensitivity_cases();
 
 /// Runs (or resumes) the study and, on the root, writes OUT/study.json, study.h5, the tip plots
 /// and report.md/.html. A case whose simulation fails is recorded with its reason.
-SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& options, WorkPool& pool);
+SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& options,
+                                             WorkPool& pool);
 
 }  // namespace mvtwin::studies

@@ -19,7 +19,8 @@ class StudyFolder {
   /// process checks an existing one. Throws mvtwin::Error when the folder holds another kind
   /// of study or one configured otherwise (naming the keys that differ): its records would
   /// not be this study's.
-  StudyFolder(std::filesystem::path dir, std::string kind, nlohmann::json config, bool write_config);
+  StudyFolder(std::filesystem::path dir, std::string kind, nlohmann::json config,
+              bool write_config);
 
   const std::filesystem::path& dir() const { return dir_; }
   std::filesystem::path path(const std::string& file) const { return dir_ / file; }
