@@ -391,6 +391,10 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
         c.fitted = json::object();
         for (int k = 0; k < obj.space().size(); ++k)
           c.fitted[obj.space().specs()[k].name] = r.fitted[k];
+        if (p.truth) {  // the truth in the fit's (user) units, e.g. mmHg for the pressure
+          const Eigen::VectorXd t = obj.space().values_of(p.truth->parameters);
+          for (int k = 0; k < obj.space().size(); ++k) c.truth[obj.space().specs()[k].name] = t[k];
+        }
         c.calibrate_s = seconds_since(t0);
       } catch (const std::exception& ex) {
         c.reason = std::string("calibration failed: ") + ex.what();  // the default stage stands
