@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "mvtwin/core/cache_key.h"
 #include "mvtwin/core/patient.h"
 #include "mvtwin/forward/closure_simulation.h"
 
@@ -26,8 +27,6 @@ std::string assumed_note(const Patient& patient);
 /// Writes `j` (indented by `indent`) to `path` atomically; nothing for an empty path.
 void write_json_file(const std::filesystem::path& path, const nlohmann::json& j, int indent = 2);
 
-/// A short key (FNV-1a, 8 hex digits) naming cached files by what made them, so that a changed
-/// setting never reuses a file made otherwise.
-std::string cache_key(const std::string& description);
+using mvtwin::cache_key;  // core/cache_key.h
 
 }  // namespace mvtwin::tools

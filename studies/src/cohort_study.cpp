@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "mvtwin/core/atomic_file.h"
+#include "mvtwin/core/cache_key.h"
 #include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -32,7 +33,6 @@ using nlohmann::json;
 namespace {
 
 using detail::describe;
-using detail::key_of;
 using detail::kNaN;
 using detail::parameters_json;
 using detail::seconds_since;
@@ -230,7 +230,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
     std::string description = "noise=" + std::to_string(o.observation.noise_mm);
     for (const auto& [k, v] : forward::describe_options(o.observation.simulation))
       description += " " + k + "=" + v;
-    const std::string key = key_of(description);
+    const std::string key = cache_key(description);
     for (int i = 0; i < o.patients; ++i) {
       const CohortMember m = cohort_member(o.seed, i);
       char name[32];
@@ -713,10 +713,7 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
     }
     rep.table({"ranks", "100 patients", "1,000 patients", "10,000 patients"}, rows);
   }
-  rep.heading("How this was made");
-  rep.code(o.command.empty() ? "(library call)" : o.command);
-  rep.paragraph("mvtwin " + std::string(kVersion) + ", " + r.workers + ", " + number(r.wall_s, 0) +
-                " s wall time (this run; finished patients of a resumed run are not redone).");
+  rep.how_made(o.command, r.workers, r.wall_s);
   rep.write(folder.dir());
 }
 

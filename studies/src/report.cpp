@@ -7,6 +7,7 @@
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/version.h"
 
 namespace mvtwin::studies {
 namespace {
@@ -104,6 +105,13 @@ void Report::figure(const std::string& png, const std::string& caption) {
   blocks_.push_back({Block::kFigure, png, caption, {}, {}});
 }
 void Report::code(const std::string& text) { blocks_.push_back({Block::kCode, text, {}, {}, {}}); }
+
+void Report::how_made(const std::string& command, const std::string& workers, double wall_s) {
+  heading("How this was made");
+  code(command.empty() ? "(library call)" : command);
+  paragraph("mvtwin " + std::string(kVersion) + ", " + workers + ", " + number(wall_s, 0) +
+            " s wall time (this run; what a resumed run had finished is not redone).");
+}
 
 void Report::write(const std::filesystem::path& dir) const {
   std::ostringstream md, html;

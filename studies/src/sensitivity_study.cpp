@@ -356,10 +356,7 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
       rep.figure(file, fig.title + " (cf. the paper's Figs 13-14).");
     }
   }
-  rep.heading("How this was made");
-  rep.code(o.command.empty() ? "(library call)" : o.command);
-  rep.paragraph("mvtwin " + std::string(kVersion) + ", " + r.workers + ", " + number(r.wall_s, 0) +
-                " s wall time.");
+  rep.how_made(o.command, r.workers, r.wall_s);
   rep.write(f.dir());
 }
 

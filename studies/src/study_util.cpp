@@ -21,14 +21,6 @@ nlohmann::json parameters_json(const ValveParameters& p) {
   return j;
 }
 
-std::string key_of(const std::string& s) {
-  std::uint32_t h = 2166136261u;
-  for (unsigned char c : s) h = (h ^ c) * 16777619u;
-  char out[16];
-  std::snprintf(out, sizeof out, "%08x", h);
-  return out;
-}
-
 Stats stats(const std::vector<double>& v) {
   Stats s;
   double sum = 0, sq = 0;

@@ -23,8 +23,6 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
 nlohmann::json describe(const forward::ClosureOptions& o);
 /// Every parameter as name -> value.
 nlohmann::json parameters_json(const ValveParameters& p);
-/// FNV-1a of a description, 8 hex digits: names cached files by what made them.
-std::string key_of(const std::string& s);
 
 struct Stats {
   int n = 0;

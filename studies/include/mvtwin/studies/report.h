@@ -21,6 +21,10 @@ class Report {
   /// A verbatim block (commands).
   void code(const std::string& text);
 
+  /// The closing section every study report has: the command line, the mvtwin version, where
+  /// it ran and its wall time (resumed runs: this run's only).
+  void how_made(const std::string& command, const std::string& workers, double wall_s);
+
   /// Writes DIR/report.md and DIR/report.html atomically (the PNGs must already be in DIR).
   void write(const std::filesystem::path& dir) const;
 
