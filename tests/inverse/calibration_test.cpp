@@ -55,6 +55,32 @@ TEST(ClosureObjective, NeedsAnObservedClosedSurface) {
                Error);
 }
 
+TEST(ClosureObjective, CompareOfASimulationGivesEvaluatesDistances) {
+  const Patient& p = observed_patient();
+  ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
+  const Eigen::VectorXd x = obj.space().start();
+  const Evaluation a = obj.evaluate(x);
+  const Evaluation b = obj.compare(obj.simulate(x));
+  ASSERT_TRUE(a.ok) << a.reason;
+  ASSERT_TRUE(b.ok) << b.reason;
+  EXPECT_EQ(a.residuals.size(), b.residuals.size());
+  EXPECT_EQ(a.residuals, b.residuals);  // simulations repeat bit for bit
+  EXPECT_EQ(obj.simulations(), 1);       // compare is not counted
+  // A failed simulation is a failed comparison, with its reason.
+  forward::ClosureResult failed = obj.simulate(x);
+  failed.summary.status = forward::ClosureStatus::kFailed;
+  failed.summary.reason = "inverted element 7";
+  const Evaluation c = obj.compare(failed);
+  EXPECT_FALSE(c.ok);
+  EXPECT_EQ(c.reason, "inverted element 7");
+  EXPECT_EQ(c.residuals.size(), 0);
+  // A simulation on another grid cannot be compared.
+  ObjectiveOptions other = small_model();
+  other.simulation.model.ures = 20;
+  ClosureObjective coarse(p, ParameterSpace("restlength", ValveParameters{}), other);
+  EXPECT_FALSE(obj.compare(coarse.simulate(x)).ok);
+}
+
 TEST(Calibration, RestLengthsImproveTheFitSurviveFailuresAndRepeat) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
