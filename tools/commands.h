@@ -20,7 +20,7 @@ struct Context {
 };
 
 void register_commands(CLI::App& app, Context& ctx);
-/// mvtwin bench closure | accuracy | stability (tools/bench.cpp).
+/// mvtwin bench closure | solvers (tools/bench.cpp) and the bench commands below.
 void register_bench(CLI::App& app, Context& ctx);
 /// mvtwin calibrate (tools/calibrate.cpp).
 void register_calibrate(CLI::App& app, Context& ctx);

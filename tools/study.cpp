@@ -16,10 +16,9 @@
 #include "mvtwin/studies/report.h"
 #include "mvtwin/studies/sensitivity_study.h"
 #include "mvtwin/studies/work_pool.h"
+#include "study_commands.h"
 
 namespace mvtwin::tools {
-namespace {
-
 /// A progress line per event on stderr, prefixed by the rank under MPI.
 studies::StudyProgress progress_printer(const studies::WorkPool& pool) {
   const std::string prefix = pool.size() > 1 ? "[rank " + std::to_string(pool.rank()) + "] " : "";
@@ -45,6 +44,8 @@ void apply_model_setting(const std::string& assignment, forward::ClosureOptions*
   if (changed)
     throw Error(assignment + " is a patient parameter, not a model option (" + why + ")");
 }
+
+namespace {
 
 void register_cohort(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
@@ -248,6 +249,9 @@ void register_study(CLI::App& app, Context& ctx) {
   study->footer("Run 'mvtwin study NAME --help' for a study's options and an example.");
   register_cohort(study, ctx);
   register_sensitivity(study, ctx);
+  register_study_convergence(study, ctx);
+  register_study_clip(study, ctx);
+  register_study_robustness(study, ctx);
 }
 
 }  // namespace mvtwin::tools

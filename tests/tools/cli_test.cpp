@@ -62,7 +62,8 @@ class Cli : public ::testing::Test {
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
   for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model", "simulate",
-                        "calibrate", "clip", "study cohort", "study sensitivity"}) {
+                        "calibrate", "clip", "study cohort", "study sensitivity", "study convergence",
+                        "study clip", "study robustness"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -401,6 +402,40 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   EXPECT_NE(r.err.find("newton"), std::string::npos) << r.err;
   r = run("study nonsense --out " + path("c"));
   EXPECT_NE(r.code, 0);
+  r = run("study convergence --quick --set peak_pressure_mmhg=80 --out " + path("v"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  r = run("study convergence --quick --dt 0.01,0.02 --out " + path("v"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("dt must decrease"), std::string::npos) << r.err;
+  r = run("study clip --quick --positions 0.5,1.5 --out " + path("k"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("positions"), std::string::npos) << r.err;
+  r = run("study robustness --quick --set marginal_stiffness_scale=2 --out " + path("r"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  for (const char* d : {"v", "k", "r"}) EXPECT_FALSE(fs::exists(path(d) + "/study.json")) << d;
+  // The benchmarks that became studies are gone, not silently kept.
+  for (const char* b : {"bench accuracy", "bench stability"}) {
+    r = run(std::string(b) + " --json " + path("b.json"));
+    EXPECT_NE(r.code, 0) << b;
+    EXPECT_FALSE(fs::exists(path("b.json"))) << b;
+  }
+}
+
+TEST_F(Cli, QuickConvergenceClipAndRobustnessStudiesPrintTheirTables) {
+  CmdResult r = run("study convergence --quick --out " + path("v"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(reference)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("[SYNTHETIC]"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("[simulate 6/6]"), std::string::npos) << r.err;  // progress
+  r = run("study clip --quick --patients 1 --out " + path("k"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("best single"), std::string::npos) << r.out;
+  r = run("study robustness --quick --runs 3 --out " + path("r"));
+  ASSERT_TRUE(r.code == 0 || r.code == 5) << r.err;
+  EXPECT_NE(r.out.find("3 cases:"), std::string::npos) << r.out;
+  for (const char* d : {"v", "k", "r"}) EXPECT_TRUE(fs::exists(path(d) + "/report.html")) << d;
 }
 
 TEST_F(Cli, QuickCohortStudyPrintsItsTableNextToThePaper) {

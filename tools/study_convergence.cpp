@@ -1,0 +1,105 @@
+// mvtwin study convergence: the closure over resolution, layers and time step, each run against
+// the finest of its series, and time against error (studies/convergence_study.h).
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "mvtwin/studies/convergence_study.h"
+#include "mvtwin/studies/report.h"
+#include "study_commands.h"
+
+namespace mvtwin::tools {
+
+void register_study_convergence(CLI::App* study, Context& ctx) {
+  auto* cmd = study->add_subcommand(
+      "convergence",
+      "In-plane and radial resolution, layers and time step against the finest run (paper Sec. "
+      "4.1)");
+  cmd->footer(
+      "Examples:\n"
+      "  mvtwin study convergence --out convergence/\n"
+      "  mvtwin study convergence --quick --out conv_quick/\n"
+      "  mvtwin study convergence --dt 0.01,0.001 --ures 30,40 --out conv_dt/\n"
+      "One patient (index --patient of the virtual cohort --seed with its hidden parameters, or\n"
+      "--patient-file at the defaults); one factor at a time around the base model (the paper's\n"
+      "grid, --set to change it): ures 20,30,40,50, vres 10,20,30, layers 1,2,3, dt 0.1 to\n"
+      "1e-4 s. The last value of each series is its reference. Writes the errors next to the\n"
+      "paper's, a plot per series, the time-against-error (Pareto) plot, study.json, study.h5\n"
+      "and report.md/.html. Resumable; the base model is simulated once for every series.");
+  struct Args {
+    std::string out, patient_file;
+    std::uint64_t seed = 2026;
+    int patient = 0, jobs = 2;
+    bool quick = false;
+    std::vector<std::string> sets;
+    std::vector<int> ures, vres, layers;
+    std::vector<double> dt;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("--out", a->out, "the study folder")->required();
+  cmd->add_option("--seed", a->seed, "cohort seed of the virtual patient")->default_val(2026);
+  cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")
+      ->default_val(0)
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--patient-file", a->patient_file, "a patient file instead")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
+  cmd->add_option("--set", a->sets, "name=value for the base model (pcg_tolerance=1e-4, ...)");
+  cmd->add_option("--ures", a->ures, "in-plane series, coarse to fine")->delimiter(',');
+  cmd->add_option("--vres", a->vres, "radial series, coarse to fine")->delimiter(',');
+  cmd->add_option("--layers", a->layers, "layer series, coarse to fine")->delimiter(',');
+  cmd->add_option("--dt", a->dt, "time-step series, s, coarse to fine")->delimiter(',');
+  cmd->add_flag("--quick", a->quick,
+                "the test size: a 12 x 8 base at dt 0.02 s, two or three values per series");
+  cmd->callback([=, &ctx] {
+    ctx.run = [=, &ctx] {
+      studies::ConvergenceStudyOptions o =
+          a->quick ? studies::ConvergenceStudyOptions::quick() : studies::ConvergenceStudyOptions{};
+      o.out = a->out;
+      o.seed = a->seed;
+      o.patient = a->patient;
+      o.patient_file = a->patient_file;
+      o.jobs = a->jobs;
+      o.command = ctx.command_line;
+      if (!a->ures.empty()) o.ures = a->ures;
+      if (!a->vres.empty()) o.vres = a->vres;
+      if (!a->layers.empty()) o.layers = a->layers;
+      if (!a->dt.empty()) o.dt = a->dt;
+      for (const auto& s : a->sets)
+        apply_model_setting(s, &o.model,
+                            "--set: the study simulates the patient with its own parameters");
+      std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
+      o.progress = progress_printer(*pool);
+      const studies::ConvergenceStudyResult r = studies::run_convergence_study(o, *pool);
+      if (!pool->is_root()) return 0;
+      std::printf("%-7s %-18s %8s %7s %7s %14s %9s %9s\n", "factor", "value", "wall_s", "steps",
+                  "dofs", "error mm", "p95 mm", "max mm");
+      int failed = 0;
+      for (const auto& k : r.runs) {
+        if (k.status != "ok") {
+          ++failed;
+          std::printf("%-7s %-18s failed: %s\n", k.factor.c_str(), k.value.c_str(),
+                      k.reason.c_str());
+          continue;
+        }
+        std::printf("%-7s %-18s %8.1f %7d %7d %14s %9.3f %9.3f\n", k.factor.c_str(),
+                    (k.value + (k.reference ? " (reference)" : "")).c_str(), k.wall_s, k.steps,
+                    k.dofs, studies::mean_sd(k.error_mean_mm, k.error_sd_mm, 3).c_str(),
+                    k.error_p95_mm, k.error_max_mm);
+      }
+      std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; "
+                << r.simulations << " simulations; wrote " << (o.out / "report.md").string() << " ("
+                << r.wall_s << " s)\n";
+      return failed ? 4 : 0;
+    };
+  });
+}
+
+}  // namespace mvtwin::tools
