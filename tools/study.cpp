@@ -66,7 +66,7 @@ void register_cohort(CLI::App* study, Context& ctx) {
     std::uint64_t seed = 2026;
     double noise = 0.5;
     bool quick = false, no_calibrate = false;
-    std::vector<std::string> sets, observe_sets;
+    std::vector<std::string> sets, fit_sets, observe_sets;
     studies::ClosureRating rating;
   };
   auto a = std::make_shared<Args>();
@@ -92,6 +92,9 @@ void register_cohort(CLI::App* study, Context& ctx) {
   cmd->add_option(
       "--set", a->sets,
       "name=value: the simulation model (ures=20, dt=0.005, ...) or a default parameter");
+  cmd->add_option("--fit-set", a->fit_sets,
+                  "name=value: the model the calibration searches with (default ures=20 on the "
+                  "--set model's other options)");
   cmd->add_option("--observe-set", a->observe_sets,
                   "name=value: the virtual patients' observation model");
   cmd->add_option("--noise", a->noise, "observation noise SD, mm")->default_val(0.5);
@@ -125,6 +128,18 @@ void register_cohort(CLI::App* study, Context& ctx) {
       o.observation.noise_mm = a->noise;
       o.rating = a->rating;
       for (const auto& s : a->sets) forward::apply_setting(s, &o.model, &o.defaults);
+      // The search model is the reporting model at 20 x 30 unless --fit-set says otherwise (the
+      // quick size searches on its own coarse model).
+      if (!a->quick) {
+        const int vres = o.model.model.vres;
+        o.fit_model = o.model;
+        o.fit_model.model.ures = studies::CohortStudyOptions::default_fit_model().model.ures;
+        o.fit_model.model.vres = vres;
+      } else {
+        o.fit_model = o.model;
+      }
+      for (const auto& s : a->fit_sets)
+        apply_model_setting(s, &o.fit_model, "--fit-set: the calibration fits the parameters");
       for (const auto& s : a->observe_sets)
         apply_model_setting(
             s, &o.observation.simulation,

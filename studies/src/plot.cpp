@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 #include <opencv2/imgcodecs.hpp>
@@ -106,8 +107,22 @@ Axis make_axis(std::vector<double> v, bool log, bool from_zero) {
   return a;
 }
 
-void text(cv::Mat& img, const std::string& s, cv::Point at, double scale, int align /*-1 0 1*/,
+/// OpenCV's Hershey fonts draw ASCII only: the few non-ASCII signs labels use, spelled out.
+std::string ascii(std::string s) {
+  const std::pair<const char*, const char*> subs[] = {
+      {"\u00b1", "+/-"}, {"\u00b2", "^2"}, {"\u00b3", "^3"}, {"\u2192", "->"}, {"\u2264", "<="},
+      {"\u2265", ">="},  {"\u00b5", "u"},  {"\u2013", "-"},  {"\u2014", "-"},  {"\u00d7", "x"}};
+  for (const auto& [from, to] : subs)
+    for (std::size_t at = s.find(from); at != std::string::npos; at = s.find(from, at))
+      s.replace(at, std::strlen(from), to);
+  for (char& c : s)
+    if (static_cast<unsigned char>(c) >= 0x80) c = '?';
+  return s;
+}
+
+void text(cv::Mat& img, const std::string& raw, cv::Point at, double scale, int align /*-1 0 1*/,
           int thickness = 1) {
+  const std::string s = ascii(raw);
   int base = 0;
   const cv::Size sz = cv::getTextSize(s, kFont, scale, thickness, &base);
   at.x -= align == 0 ? sz.width / 2 : align > 0 ? sz.width : 0;
@@ -181,9 +196,10 @@ void Plot::write_png(const std::filesystem::path& path) const {
   text(img, x_label, {box.x + box.width / 2, height - 25}, 0.5, 0);
   {  // y label, rotated
     int base = 0;
-    const cv::Size sz = cv::getTextSize(y_label, kFont, 0.5, 1, &base);
+    const std::string y_text = ascii(y_label);
+    const cv::Size sz = cv::getTextSize(y_text, kFont, 0.5, 1, &base);
     cv::Mat t(sz.height + base + 4, sz.width + 4, CV_8UC3, cv::Scalar(255, 255, 255));
-    cv::putText(t, y_label, {2, sz.height + 1}, kFont, 0.5, cv::Scalar(30, 30, 30), 1, cv::LINE_AA);
+    cv::putText(t, y_text, {2, sz.height + 1}, kFont, 0.5, cv::Scalar(30, 30, 30), 1, cv::LINE_AA);
     cv::Mat r;
     cv::rotate(t, r, cv::ROTATE_90_COUNTERCLOCKWISE);
     const int y0 = std::max(0, box.y + box.height / 2 - r.rows / 2);

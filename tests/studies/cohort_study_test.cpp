@@ -151,6 +151,42 @@ TEST_F(CohortStudy, ResumedStudyRedoesNothingAndGivesTheSameNumbers) {
   EXPECT_EQ(numbers_of(read_json(o.out / "study.json")), numbers_of(first));
 }
 
+TEST_F(CohortStudy, CalibrationSearchesOnTheFitModelAndReportsOnTheStudyModel) {
+  CohortStudyOptions o = quick(1);
+  o.calibrate = true;
+  o.fit = "pressure";  // one parameter: a short search
+  o.max_simulations = 8;
+  o.fit_model.model.ures = 12;  // coarser than the reporting model (16 x 12)
+  o.fit_model.model.vres = 8;
+  auto pool = make_local_pool();
+  const CohortStudyResult r = run_cohort_study(o, *pool);
+  ASSERT_EQ(r.patients.size(), 1u);
+  const CohortPatient& p = r.patients[0];
+  ASSERT_EQ(p.status, "ok") << p.reason;
+  ASSERT_TRUE(std::isfinite(p.error_calibrated_mm)) << p.reason;
+  EXPECT_GT(p.simulations, 1);
+  EXPECT_LE(p.simulations, 8);
+  // The search keeps its best point, which is at least as good as its start (the defaults).
+  EXPECT_LE(p.error_calibrated_fit_model_mm, p.error_default_fit_model_mm + 1e-12);
+  // Two models: the search's figures are not the reported ones.
+  EXPECT_NE(p.error_default_fit_model_mm, p.error_default_mm);
+  EXPECT_NE(p.error_calibrated_fit_model_mm, p.error_calibrated_mm);
+  const json j = read_json(o.out / "study.json");
+  EXPECT_TRUE(j["patients"][0]["error_calibrated_fit_model_mm"].is_number());
+  EXPECT_EQ(j["config"]["fit_model"]["ures"], "12");
+
+  // One model for both: the reported error after calibration is the search's own.
+  CohortStudyOptions same = quick(1);
+  same.out = dir_ / "same";
+  same.calibrate = true;
+  same.fit = "pressure";
+  same.max_simulations = 8;
+  const CohortStudyResult s = run_cohort_study(same, *pool);
+  ASSERT_EQ(s.patients[0].status, "ok") << s.patients[0].reason;
+  EXPECT_EQ(s.patients[0].error_calibrated_mm, s.patients[0].error_calibrated_fit_model_mm);
+  EXPECT_NEAR(s.patients[0].error_default_mm, s.patients[0].error_default_fit_model_mm, 1e-9);
+}
+
 TEST_F(CohortStudy, FolderWithOtherSettingsIsRefusedNamingThem) {
   CohortStudyOptions o = quick(1);
   auto pool = make_local_pool();
