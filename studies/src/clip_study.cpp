@@ -131,10 +131,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
   std::string err;
   if (!o.is_valid(&err)) throw Error(err);
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "clip", o.config(), true);
-  pool.barrier();
-  if (!pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "clip", o.config(), false);
+  const std::unique_ptr<StudyFolder> folder = open_study_folder(pool, o.out, "clip", o.config());
 
   std::vector<Entry> entries;
   if (o.folder.empty()) {
@@ -145,11 +142,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       entries.push_back({name, m.id, std::string(pathology_name(m.pathology)), {}, i});
     }
   } else {
-    std::vector<fs::path> files;
-    for (const auto& f : fs::directory_iterator(o.folder))
-      if (f.is_regular_file() && f.path().extension() == ".h5") files.push_back(f.path());
-    std::sort(files.begin(), files.end());
-    if (files.empty()) throw Error(o.folder.string() + ": no patient files (*.h5)");
+    const std::vector<fs::path> files = patient_files(o.folder);
     for (std::size_t i = 0; i < files.size(); ++i)
       entries.push_back({files[i].stem().string(), "", "", files[i], static_cast<int>(i)});
   }

@@ -226,10 +226,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   if (!o.is_valid(&err)) throw Error(err);
   const auto t_start = std::chrono::steady_clock::now();
   const json config = o.config();
-  std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "cohort", config, true);
-  pool.barrier();
-  if (!pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "cohort", config, false);
+  const std::unique_ptr<StudyFolder> folder = open_study_folder(pool, o.out, "cohort", config);
 
   std::mutex progress_mutex;
   auto report = [&](const std::string& stage, int done, int total, const std::string& msg) {
@@ -255,11 +252,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
                          cache / ("observed_" + m.id + "_" + key + ".h5"), true});
     }
   } else {
-    std::vector<fs::path> files;
-    for (const auto& f : fs::directory_iterator(o.folder))
-      if (f.is_regular_file() && f.path().extension() == ".h5") files.push_back(f.path());
-    std::sort(files.begin(), files.end());
-    if (files.empty()) throw Error(o.folder.string() + ": no patient files (*.h5)");
+    const std::vector<fs::path> files = patient_files(o.folder);
     for (const auto& f : files) entries.push_back({f.stem().string(), "", "", f, false});
   }
   pool.barrier();

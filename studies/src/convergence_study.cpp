@@ -187,12 +187,8 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
   std::string err;
   if (!o.is_valid(&err)) throw Error(err);
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root())
-    folder = std::make_unique<StudyFolder>(o.out, "convergence", o.config(), true);
-  pool.barrier();
-  if (!pool.is_root())
-    folder = std::make_unique<StudyFolder>(o.out, "convergence", o.config(), false);
+  const std::unique_ptr<StudyFolder> folder =
+      open_study_folder(pool, o.out, "convergence", o.config());
 
   Patient patient;
   ValveParameters parameters;

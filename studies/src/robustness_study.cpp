@@ -187,11 +187,8 @@ RobustnessStudyResult run_robustness_study(const RobustnessStudyOptions& o, Work
   std::string err;
   if (!o.is_valid(&err)) throw Error(err);
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root()) folder = std::make_unique<StudyFolder>(o.out, "robustness", o.config(), true);
-  pool.barrier();
-  if (!pool.is_root())
-    folder = std::make_unique<StudyFolder>(o.out, "robustness", o.config(), false);
+  const std::unique_ptr<StudyFolder> folder =
+      open_study_folder(pool, o.out, "robustness", o.config());
 
   std::mutex m;
   std::atomic<int> done{0};

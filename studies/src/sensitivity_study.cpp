@@ -141,12 +141,8 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
   std::string err;
   if (!o.is_valid(&err)) throw Error(err);
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<StudyFolder> folder;
-  if (pool.is_root())
-    folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), true);
-  pool.barrier();
-  if (!pool.is_root())
-    folder = std::make_unique<StudyFolder>(o.out, "sensitivity", o.config(), false);
+  const std::unique_ptr<StudyFolder> folder =
+      open_study_folder(pool, o.out, "sensitivity", o.config());
 
   Patient patient;
   ValveParameters baseline;

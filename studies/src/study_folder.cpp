@@ -1,5 +1,6 @@
 #include "mvtwin/studies/study_folder.h"
 
+#include <algorithm>
 #include <fstream>
 #include <mutex>
 
@@ -68,6 +69,25 @@ std::optional<nlohmann::json> StudyFolder::record(const std::string& name) const
 
 void StudyFolder::save_record(const std::string& name, const nlohmann::json& r) const {
   write_json(dir_ / "records" / (name + ".json"), r);
+}
+
+std::unique_ptr<StudyFolder> open_study_folder(WorkPool& pool, const std::filesystem::path& dir,
+                                               const std::string& kind,
+                                               const nlohmann::json& config) {
+  std::unique_ptr<StudyFolder> folder;
+  if (pool.is_root()) folder = std::make_unique<StudyFolder>(dir, kind, config, true);
+  pool.barrier();
+  if (!pool.is_root()) folder = std::make_unique<StudyFolder>(dir, kind, config, false);
+  return folder;
+}
+
+std::vector<std::filesystem::path> patient_files(const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& f : std::filesystem::directory_iterator(folder))
+    if (f.is_regular_file() && f.path().extension() == ".h5") files.push_back(f.path());
+  std::sort(files.begin(), files.end());
+  if (files.empty()) throw Error(folder.string() + ": no patient files (*.h5)");
+  return files;
 }
 
 }  // namespace mvtwin::studies

@@ -4,11 +4,15 @@
 // resumes without redoing anything it finished.
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
+
+#include "mvtwin/studies/work_pool.h"
 
 namespace mvtwin::studies {
 
@@ -35,6 +39,16 @@ class StudyFolder {
   std::string kind_;
   nlohmann::json config_;
 };
+
+/// The study folder on every process of `pool`: the root opens (or creates) it first, with its
+/// study_config.json, then the others check it. Throws as StudyFolder does.
+std::unique_ptr<StudyFolder> open_study_folder(WorkPool& pool, const std::filesystem::path& dir,
+                                               const std::string& kind,
+                                               const nlohmann::json& config);
+
+/// Every patient file (*.h5) of `folder`, in name order. Throws mvtwin::Error naming the
+/// folder when it holds none.
+std::vector<std::filesystem::path> patient_files(const std::filesystem::path& folder);
 
 /// One mutex for every HDF5 call a study makes from its threads (Debian's HDF5 is not built
 /// thread-safe).
