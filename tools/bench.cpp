@@ -1,7 +1,8 @@
 // mvtwin bench closure | solvers: timing figures, not tests. Each prints a table and, with
 // --json FILE, writes the figures with what produced them (version, command, settings). The
-// experiments are studies: `mvtwin study convergence` and `mvtwin study robustness` replaced
-// bench accuracy and bench stability.
+// experiments are studies: `mvtwin study convergence`, `robustness`, `detection` and the
+// calibration stage of `mvtwin study cohort` replaced bench accuracy, stability, detect and
+// calibrate.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -149,8 +150,6 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
 
 void register_bench(CLI::App& app, Context& ctx) {
   auto* bench = app.add_subcommand("bench", "Benchmarks: time and the error it costs");
-  register_bench_calibrate(*bench, ctx);
-  register_bench_detect(*bench, ctx);
   register_bench_import(*bench, ctx);
   bench->require_subcommand(1);
 

@@ -24,12 +24,8 @@ void register_commands(CLI::App& app, Context& ctx);
 void register_bench(CLI::App& app, Context& ctx);
 /// mvtwin calibrate (tools/calibrate.cpp).
 void register_calibrate(CLI::App& app, Context& ctx);
-/// The fit options calibrate and bench calibrate share: --jobs, --max-sims, --scan, --no-scan.
+/// The fit options of calibrate: --jobs, --max-sims, --scan, --no-scan.
 void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* options);
-/// mvtwin bench calibrate (tools/bench_calibrate.cpp), under the bench command.
-void register_bench_calibrate(CLI::App& bench, Context& ctx);
-/// mvtwin bench detect (tools/bench_detect.cpp), under the bench command.
-void register_bench_detect(CLI::App& bench, Context& ctx);
 /// mvtwin bench import (tools/bench_import.cpp), under the bench command.
 void register_bench_import(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).

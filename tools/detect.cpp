@@ -15,7 +15,7 @@
 
 #include "commands.h"
 #include "output_files.h"
-#include "virtual_tee.h"
+#include "mvtwin/studies/virtual_tee.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
@@ -75,7 +75,7 @@ void register_detect(CLI::App& app, Context& ctx) {
         ->default_val(ro->probe_jitter_deg);
     cmd->add_option("--jobs", *jobs, "with --virtual: patients prepared at once")->default_val(2)->check(CLI::Range(1, 256));
     cmd->add_option("--cache", *cache, "with --virtual: directory keeping the simulated patients");
-    auto train_noise = std::make_shared<std::vector<double>>(kTrainingNoise);
+    auto train_noise = std::make_shared<std::vector<double>>(studies::kTrainingNoise);
     cmd->add_option("--train-noise", *train_noise, "with --virtual: electronic noise SDs of the renders (patients cycle)")
         ->delimiter(',')
         ->default_str("0.004,0.016,0.063,0");
@@ -95,10 +95,10 @@ void register_detect(CLI::App& app, Context& ctx) {
           if (const std::string e = ro->invalid(); !e.empty()) throw Error("train-detector: " + e);
           std::vector<std::uint64_t> seeds;
           for (int i = 0; i < *n_virtual; ++i)
-            seeds.push_back(virtual_cohort_seed(*cohort_seed, i));
-          std::mutex io;
-          const VirtualTrainingResult r =
-              train_on_virtual_cohort(seeds, VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs, fs::path(*cache), io);
+            seeds.push_back(studies::virtual_cohort_seed(*cohort_seed, i));
+          const studies::VirtualTrainingResult r = studies::train_on_virtual_cohort(
+              seeds, studies::VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs, fs::path(*cache),
+              [](const std::string& line) { std::cout << line << std::endl; });
           std::string ids;
           for (const auto& id : r.patients) ids += (ids.empty() ? "" : ",") + id;
           std::ostringstream render;
@@ -218,8 +218,8 @@ void register_detect(CLI::App& app, Context& ctx) {
                                 {"command", ctx.command_line},
                                 {"created_utc", utc_now_iso8601()}}}};
         if (p.images.size() == p.sequence.frames.size()) {
-          nlohmann::json run{{"frames", detection_errors(p, frames, info)}};
-          const nlohmann::json s = summarize_detections({&run});
+          nlohmann::json run{{"frames", studies::detection_errors(p, frames, info)}};
+          const nlohmann::json s = studies::summarize_detections({&run});
           if (s["frames"].get<int>() > 0) {
             std::printf("  against the stored valve%s: surface %.2f mm (SD %.2f over %d frames; open %.2f, closed "
                         "%.2f), papillary tips %.2f mm\n",

@@ -56,15 +56,17 @@ void register_cohort(CLI::App* study, Context& ctx) {
       "  mvtwin study cohort --patients 25 --seed 2026 --out cohort25/\n"
       "  mpirun -np 4 mvtwin study cohort --patients 100 --jobs 2 --out cohort100/\n"
       "  mvtwin study cohort --folder patients/ --no-calibrate --out real/\n"
+      "  mvtwin study cohort --patients 10 --method ceres --cache obs/ --out cohort10_ceres/\n"
       "Virtual patients are drawn by the rule of every command (mvtwin cohort --seed S makes the\n"
       "same ones); their observed closures (a finer model, --observe-set) are cached in\n"
       "OUT/observed or --cache. Writes OUT/study.json, study.h5, PNG plots and report.md/.html.\n"
-      "Resumable: rerun the same command and finished patients are not redone.");
+      "Resumable: rerun the same command and finished patients are not redone. To compare\n"
+      "optimizers, run one study per --method with the same --cache (observations are shared).");
   struct Args {
     std::string out, folder, cache, fit = "restlength,stiffness,pressure", method = "bobyqa";
     int patients = 25, jobs = 2, max_sims = 50;
     std::uint64_t seed = 2026;
-    double noise = 0.5;
+    double noise = 0.5, restlength_tolerance = 0.05;
     bool quick = false, no_calibrate = false;
     std::vector<std::string> sets, fit_sets, observe_sets;
     studies::ClosureRating rating;
@@ -98,6 +100,9 @@ void register_cohort(CLI::App* study, Context& ctx) {
   cmd->add_option("--observe-set", a->observe_sets,
                   "name=value: the virtual patients' observation model");
   cmd->add_option("--noise", a->noise, "observation noise SD, mm")->default_val(0.5);
+  cmd->add_option("--restlength-tolerance", a->restlength_tolerance,
+                  "a fitted rest-length factor this close to the truth counts as recovered")
+      ->default_val(a->restlength_tolerance);
   cmd->add_option("--satisfactory-orifice", a->rating.satisfactory_orifice_mm2,
                   "rating threshold, mm^2")
       ->default_val(a->rating.satisfactory_orifice_mm2);
@@ -127,6 +132,7 @@ void register_cohort(CLI::App* study, Context& ctx) {
       o.jobs = a->jobs;
       o.observation.noise_mm = a->noise;
       o.rating = a->rating;
+      o.restlength_tolerance = a->restlength_tolerance;
       for (const auto& s : a->sets) forward::apply_setting(s, &o.model, &o.defaults);
       // The search model is the reporting model at 20 x 30 unless --fit-set says otherwise (the
       // quick size searches on its own coarse model).
@@ -173,6 +179,17 @@ void register_cohort(CLI::App* study, Context& ctx) {
       std::printf(
           "paper (25 patients)                                  1.49 ± 0.62                        "
           "  7/9/9\n");
+      if (r.summary.contains("calibration")) {
+        const auto& c = r.summary["calibration"];
+        const auto& rr = c["restlength_recovery"];
+        std::printf(
+            "calibration (%s): %d patients, %s simulations each (%d failed in all), %s s each; "
+            "rest-length factors within %.2f of the truth: %d of %d identified (%d not)\n",
+            o.method.c_str(), c["calibrated"].get<int>(), ms(c["simulations"]).c_str(),
+            c["failed_simulations"].get<int>(), ms(c["calibrate_s"]).c_str(),
+            rr["tolerance"].get<double>(), rr["identified_within_tolerance"].get<int>(),
+            rr["identified"].get<int>(), rr["unidentified"].get<int>());
+      }
       std::cout << "wrote " << (o.out / "study.json").string()
                 << ", study.h5, report.md, report.html (" << r.wall_s << " s)\n";
       return ov["failed"].get<int>() > 0 ? 4 : 0;
@@ -267,6 +284,7 @@ void register_study(CLI::App& app, Context& ctx) {
   register_study_convergence(study, ctx);
   register_study_clip(study, ctx);
   register_study_robustness(study, ctx);
+  register_study_detection(study, ctx);
 }
 
 }  // namespace mvtwin::tools

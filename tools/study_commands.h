@@ -25,5 +25,7 @@ void register_study_convergence(CLI::App* study, Context& ctx);
 void register_study_clip(CLI::App* study, Context& ctx);
 /// mvtwin study robustness (tools/study_robustness.cpp).
 void register_study_robustness(CLI::App* study, Context& ctx);
+/// mvtwin study detection (tools/study_detection.cpp).
+void register_study_detection(CLI::App* study, Context& ctx);
 
 }  // namespace mvtwin::tools

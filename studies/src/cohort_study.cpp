@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <set>
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/cache_key.h"
@@ -88,6 +89,8 @@ bool CohortStudyOptions::is_valid(std::string* error) const {
     return fail("cohort study: " + folder.string() + " is not a folder");
   if (jobs < 1 || jobs > 256) return fail("cohort study: jobs must be 1 to 256");
   if (max_simulations < 1) return fail("cohort study: max_simulations must be >= 1");
+  if (!(restlength_tolerance > 0) || !std::isfinite(restlength_tolerance))
+    return fail("cohort study: restlength_tolerance must be a positive number");
   std::string e;
   if (!model.is_valid(&e)) return fail("cohort study: model: " + e);
   if (calibrate && !fit_model.is_valid(&e)) return fail("cohort study: fit model: " + e);
@@ -174,8 +177,13 @@ json CohortPatient::to_json() const {
          {"error_default_fit_model_mm", n(error_default_fit_model_mm)},
          {"error_calibrated_fit_model_mm", n(error_calibrated_fit_model_mm)},
          {"simulations", simulations},
+         {"failed_simulations", failed_simulations},
+         {"termination", termination},
+         {"noise_fit_mm", n(noise_fit_mm)},
          {"fitted", fitted.is_null() ? json::object() : fitted},
          {"truth", truth.is_null() ? json::object() : truth},
+         {"sd", sd.is_null() ? json::object() : sd},
+         {"identified", identified.is_null() ? json::object() : identified},
          {"observe_s", observe_s},
          {"default_s", default_s},
          {"calibrate_s", calibrate_s}};
@@ -204,8 +212,13 @@ CohortPatient CohortPatient::from_json(const json& j) {
   p.error_default_fit_model_mm = num(j, "error_default_fit_model_mm");
   p.error_calibrated_fit_model_mm = num(j, "error_calibrated_fit_model_mm");
   p.simulations = j.value("simulations", 0);
+  p.failed_simulations = j.value("failed_simulations", 0);
+  p.termination = j.value("termination", "");
+  p.noise_fit_mm = num(j, "noise_fit_mm");
   p.fitted = j.value("fitted", json::object());
   p.truth = j.value("truth", json::object());
+  p.sd = j.value("sd", json::object());
+  p.identified = j.value("identified", json::object());
   p.observe_s = j.value("observe_s", 0.0);
   p.default_s = j.value("default_s", 0.0);
   p.calibrate_s = j.value("calibrate_s", 0.0);
@@ -412,9 +425,18 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
           c.error_calibrated_mm = ev.mean_mm;
         }
         c.simulations = r.simulations;
+        c.failed_simulations = r.failed_simulations;
+        c.termination = r.termination;
+        c.noise_fit_mm = r.noise_mm;
         c.fitted = json::object();
-        for (int k = 0; k < obj.space().size(); ++k)
-          c.fitted[obj.space().specs()[k].name] = r.fitted[k];
+        c.sd = json::object();
+        c.identified = json::object();
+        for (int k = 0; k < obj.space().size(); ++k) {
+          const std::string& name = obj.space().specs()[k].name;
+          c.fitted[name] = r.fitted[k];
+          c.sd[name] = std::isfinite(r.sd[k]) ? json(r.sd[k]) : json(nullptr);
+          c.identified[name] = static_cast<bool>(r.identified[k]);
+        }
         if (p.truth) {  // the truth in the fit's (user) units, e.g. mmHg for the pressure
           const Eigen::VectorXd t = obj.space().values_of(p.truth->parameters);
           for (int k = 0; k < obj.space().size(); ++k) c.truth[obj.space().specs()[k].name] = t[k];
@@ -476,17 +498,55 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   result.summary["overall"] = summarize(all);
   for (const auto& [k, v] : by_path) result.summary["by_pathology"][k] = summarize(v);
   for (const auto& [k, v] : by_rating) result.summary["by_rating"][k] = summarize(v);
-  json perr = json::object();
+  // Parameter recovery, over every fit and over the parameters the data identify.
+  std::map<std::string, std::vector<double>> perr, perr_identified;
+  int rl_identified = 0, rl_within = 0, rl_unidentified = 0;
   for (const auto& p : result.patients)
-    for (const auto& [name, v] : p.fitted.items())
-      if (p.truth.contains(name))
-        perr[name].push_back(v.get<double>() - p.truth[name].get<double>());
-  for (auto& [name, v] : perr.items()) {
-    std::vector<double> abs;
-    for (const auto& x : v) abs.push_back(std::abs(x.get<double>()));
-    v = stats_json(abs);
+    for (const auto& [name, v] : p.fitted.items()) {
+      if (!p.truth.contains(name)) continue;
+      const double d = std::abs(v.get<double>() - p.truth[name].get<double>());
+      perr[name].push_back(d);
+      const bool ident = p.identified.value(name, false);
+      if (ident) perr_identified[name].push_back(d);
+      if (name.rfind("restlength_factor_", 0) != 0) continue;
+      if (!ident) {
+        ++rl_unidentified;
+        continue;
+      }
+      ++rl_identified;
+      if (d <= o.restlength_tolerance) ++rl_within;
+    }
+  json pj = json::object(), pij = json::object();
+  for (const auto& [name, v] : perr) pj[name] = stats_json(v);
+  for (const auto& [name, v] : perr_identified) pij[name] = stats_json(v);
+  result.summary["fitted_minus_truth_abs"] = pj;
+  result.summary["fitted_minus_truth_abs_identified"] = pij;
+  if (o.calibrate) {
+    std::vector<double> sims, secs, ratio, noise_fit;
+    int failed_sims = 0, calibrated = 0;
+    for (const auto& p : result.patients) {
+      if (!std::isfinite(p.error_calibrated_mm)) continue;
+      ++calibrated;
+      sims.push_back(p.simulations);
+      secs.push_back(p.calibrate_s);
+      failed_sims += p.failed_simulations;
+      if (std::isfinite(p.noise_fit_mm)) noise_fit.push_back(p.noise_fit_mm);
+      if (p.synthetic && o.folder.empty() && o.observation.noise_mm > 0)
+        ratio.push_back(p.error_calibrated_mm / o.observation.noise_mm);
+    }
+    result.summary["calibration"] = {{"method", o.method},
+                                     {"calibrated", calibrated},
+                                     {"simulations", stats_json(sims)},
+                                     {"failed_simulations", failed_sims},
+                                     {"calibrate_s", stats_json(secs)},
+                                     {"noise_fit_mm", stats_json(noise_fit)},
+                                     {"error_calibrated_over_noise", stats_json(ratio)},
+                                     {"restlength_recovery",
+                                      {{"tolerance", o.restlength_tolerance},
+                                       {"identified", rl_identified},
+                                       {"identified_within_tolerance", rl_within},
+                                       {"unidentified", rl_unidentified}}}};
   }
-  result.summary["fitted_minus_truth_abs"] = perr;
   result.wall_s = seconds_since(t_start);
   if (pool.is_root()) write_outputs(o, result, *folder);
   pool.barrier();
@@ -549,6 +609,32 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
   numbers("orifice_observed_mm2", "mm^2",
           [](const CohortPatient& p) { return p.orifice_observed_mm2; });
   numbers("coaptation_mm", "mm", [](const CohortPatient& p) { return p.coaptation_mm; });
+  if (o.calibrate) {
+    numbers("simulations", "", [](const CohortPatient& p) { return double(p.simulations); });
+    numbers("calibrate_s", "s", [](const CohortPatient& p) { return p.calibrate_s; });
+    // Per fitted parameter: fitted value, truth (NaN for real patients), SD, identified (0/1).
+    std::set<std::string> names;
+    for (const auto& p : r.patients)
+      for (const auto& [name, v] : p.fitted.items()) names.insert(name);
+    auto field = [](const json& j, const std::string& name) {
+      if (!j.contains(name)) return kNaN;
+      const json& v = j[name];
+      return v.is_number() ? v.get<double>() : v.is_boolean() ? double(v.get<bool>()) : kNaN;
+    };
+    for (const std::string& name : names)
+      for (const char* what : {"fitted", "truth", "sd", "identified"}) {
+        TableColumn c;
+        c.name = std::string(what) + "_" + name;
+        for (const auto& p : r.patients) {
+          const json& src = std::string(what) == "fitted"  ? p.fitted
+                            : std::string(what) == "truth" ? p.truth
+                            : std::string(what) == "sd"    ? p.sd
+                                                           : p.identified;
+          c.numbers.push_back(field(src, name));
+        }
+        t.columns.push_back(std::move(c));
+      }
+  }
   write_table_file(folder.path("study.h5"), t);
 
   // Plots.
@@ -690,12 +776,52 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
              "Mean point-to-mesh error by pathology (bars: SD over patients).");
   rep.figure("ratings.png",
              "Closure ratings: mvtwin's automatic rating against the paper's visual one.");
+  if (o.calibrate && s.contains("calibration")) {
+    const json& cs = s["calibration"];
+    rep.heading("Calibration");
+    rows.clear();
+    auto max_of = [](const json& st) {
+      return st.contains("max") && st["max"].is_number() ? st["max"].get<double>() : kNaN;
+    };
+    rows.push_back({"patients calibrated", std::to_string(cs["calibrated"].get<int>())});
+    rows.push_back({"simulations per patient",
+                    mean_sd(mean_of(cs["simulations"]), sd_of(cs["simulations"]), 1) + " (max " +
+                        number(max_of(cs["simulations"]), 0) + ", failed in all " +
+                        std::to_string(cs["failed_simulations"].get<int>()) + ")"});
+    rows.push_back({"wall time per calibration, s",
+                    mean_sd(mean_of(cs["calibrate_s"]), sd_of(cs["calibrate_s"]), 1) + " (max " +
+                        number(max_of(cs["calibrate_s"]), 1) + ")"});
+    if (mean_of(cs["error_calibrated_over_noise"]) > 0)
+      rows.push_back(
+          {"error after / observation noise SD", cell(cs["error_calibrated_over_noise"])});
+    rows.push_back({"noise SD estimated by the fit, mm", cell(cs["noise_fit_mm"])});
+    const json& rr = cs["restlength_recovery"];
+    if (rr["identified"].get<int>() + rr["unidentified"].get<int>() > 0)
+      rows.push_back({"rest-length factors within " + number(rr["tolerance"].get<double>(), 2) +
+                          " of the truth",
+                      std::to_string(rr["identified_within_tolerance"].get<int>()) + " of " +
+                          std::to_string(rr["identified"].get<int>()) + " identified (" +
+                          std::to_string(rr["unidentified"].get<int>()) +
+                          " not identified by the data)"});
+    rep.table({"", "mvtwin (" + o.method + ")"}, rows);
+  }
   if (o.calibrate && !s["fitted_minus_truth_abs"].empty()) {
     rep.heading("Fitted parameters against the truth (virtual patients)");
+    rep.paragraph(
+        "Identified: the data determine the parameter (not along a null direction of the fit's "
+        "J^T J, and its SD at most its scale); the others stay near where the search left them.");
     rows.clear();
-    for (const auto& [name, v] : s["fitted_minus_truth_abs"].items())
-      rows.push_back({name, std::to_string(v["n"].get<int>()), cell(v)});
-    rep.table({"parameter", "patients", "|fitted - truth|"}, rows);
+    for (const auto& [name, v] : s["fitted_minus_truth_abs"].items()) {
+      const json& vi = s["fitted_minus_truth_abs_identified"].contains(name)
+                           ? s["fitted_minus_truth_abs_identified"][name]
+                           : json();
+      rows.push_back({name, std::to_string(v["n"].get<int>()), cell(v),
+                      vi.is_null() ? "0" : std::to_string(vi["n"].get<int>()),
+                      vi.is_null() ? "-" : cell(vi)});
+    }
+    rep.table({"parameter", "patients", "|fitted - truth|", "identified in",
+               "|fitted - truth|, identified"},
+              rows);
   }
   rep.heading("Per patient");
   rows.clear();

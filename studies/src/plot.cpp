@@ -206,11 +206,8 @@ void Plot::write_png(const std::filesystem::path& path) const {
     if (y0 + r.rows <= height && 10 + r.cols <= width)
       r.copyTo(img(cv::Rect(10, y0, r.cols, r.rows)));
   }
-  for (const auto& [v, l] : h_lines) {
-    const cv::Point a = px(ax.lo, v), b = px(ax.hi, v);
-    dashed(img, a, b, cv::Scalar(80, 80, 80));
-    text(img, l, {b.x - 6, a.y - 6}, 0.42, 1);
-  }
+  for (const auto& [v, l] : h_lines)
+    dashed(img, px(ax.lo, v), px(ax.hi, v), cv::Scalar(80, 80, 80));
 
   // Data.
   const int ns = static_cast<int>(series.size());
@@ -246,6 +243,15 @@ void Plot::write_png(const std::filesystem::path& path) const {
     if (s.line && pts.size() > 1) cv::polylines(img, pts, false, c, 2, cv::LINE_AA);
     if (s.markers)
       for (const auto& p : pts) cv::circle(img, p, 4, c, cv::FILLED, cv::LINE_AA);
+  }
+  // The reference lines' labels over the data, on a white ground (bars would hide them).
+  for (const auto& [v, l] : h_lines) {
+    const cv::Point b = px(ax.hi, v);
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(ascii(l), kFont, 0.42, 1, &base);
+    cv::rectangle(img, {b.x - 8 - sz.width, b.y - 8 - sz.height}, {b.x - 4, b.y - 3},
+                  cv::Scalar(255, 255, 255), cv::FILLED);
+    text(img, l, {b.x - 6, b.y - 6}, 0.42, 1);
   }
   // Legend, two columns above the box.
   if (ns > 1 || !series.front().name.empty()) {

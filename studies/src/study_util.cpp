@@ -26,6 +26,8 @@ Stats stats(const std::vector<double>& v) {
   double sum = 0, sq = 0;
   for (double x : v)
     if (std::isfinite(x)) {
+      s.min = s.n ? std::min(s.min, x) : x;
+      s.max = s.n ? std::max(s.max, x) : x;
       ++s.n;
       sum += x;
       sq += x * x;
@@ -41,7 +43,9 @@ nlohmann::json stats_json(const std::vector<double>& v) {
   using nlohmann::json;
   return {{"n", s.n},
           {"mean", s.n ? json(s.mean) : json(nullptr)},
-          {"sd", s.n ? json(s.sd) : json(nullptr)}};
+          {"sd", s.n ? json(s.sd) : json(nullptr)},
+          {"min", s.n ? json(s.min) : json(nullptr)},
+          {"max", s.n ? json(s.max) : json(nullptr)}};
 }
 
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s) {

@@ -26,11 +26,11 @@ nlohmann::json parameters_json(const ValveParameters& p);
 
 struct Stats {
   int n = 0;
-  double mean = kNaN, sd = kNaN;
+  double mean = kNaN, sd = kNaN, min = kNaN, max = kNaN;
 };
-/// Mean and sample SD of the finite values.
+/// Mean, sample SD and range of the finite values.
 Stats stats(const std::vector<double>& v);
-/// {"n", "mean", "sd"} (null when n = 0).
+/// {"n", "mean", "sd", "min", "max"} (null when n = 0).
 nlohmann::json stats_json(const std::vector<double>& v);
 
 /// The provenance every study file records.

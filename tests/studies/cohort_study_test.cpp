@@ -171,18 +171,59 @@ TEST_F(CohortStudy, CalibrationSearchesOnTheFitModelAndReportsOnTheStudyModel) {
   // Two models: the search's figures are not the reported ones.
   EXPECT_NE(p.error_default_fit_model_mm, p.error_default_mm);
   EXPECT_NE(p.error_calibrated_fit_model_mm, p.error_calibrated_mm);
+  // What bench calibrate reported: the fit's SD and identifiability per parameter, its cost.
+  ASSERT_TRUE(p.fitted.contains("peak_pressure")) << p.fitted.dump();
+  EXPECT_TRUE(p.identified.contains("peak_pressure")) << p.identified.dump();
+  EXPECT_TRUE(p.sd.contains("peak_pressure")) << p.sd.dump();
+  EXPECT_FALSE(p.termination.empty());
+  EXPECT_GE(p.failed_simulations, 0);
+  EXPECT_LE(p.failed_simulations, p.simulations);
   const json j = read_json(o.out / "study.json");
   EXPECT_TRUE(j["patients"][0]["error_calibrated_fit_model_mm"].is_number());
+  EXPECT_EQ(j["patients"][0]["identified"], p.identified);
   EXPECT_EQ(j["config"]["fit_model"]["ures"], "12");
+  const json& cal = j["summary"]["calibration"];
+  EXPECT_EQ(cal["calibrated"], 1);
+  EXPECT_EQ(cal["simulations"]["mean"].get<double>(), p.simulations);
+  EXPECT_EQ(cal["restlength_recovery"]["identified"], 0);  // no rest length fitted
+  EXPECT_EQ(cal["restlength_recovery"]["unidentified"], 0);
+  // The ratio to the observation noise is the mean error after over the noise SD.
+  EXPECT_NEAR(cal["error_calibrated_over_noise"]["mean"].get<double>(),
+              p.error_calibrated_mm / o.observation.noise_mm, 1e-12);
+  // The HDF5 table has the fitted value and the truth beside each other.
+  const TableFile t = read_table_file(o.out / "study.h5");
+  auto column = [&](const std::string& name) -> const TableColumn* {
+    for (const auto& c : t.columns)
+      if (c.name == name) return &c;
+    return nullptr;
+  };
+  ASSERT_NE(column("fitted_peak_pressure"), nullptr);
+  ASSERT_NE(column("truth_peak_pressure"), nullptr);
+  EXPECT_EQ(column("fitted_peak_pressure")->numbers.at(0), p.fitted["peak_pressure"].get<double>());
+  EXPECT_EQ(column("truth_peak_pressure")->numbers.at(0), p.truth["peak_pressure"].get<double>());
 
   // One model for both: the reported error after calibration is the search's own.
   CohortStudyOptions same = quick(1);
   same.out = dir_ / "same";
   same.calibrate = true;
-  same.fit = "pressure";
+  same.fit = "restlength";
   same.max_simulations = 8;
   const CohortStudyResult s = run_cohort_study(same, *pool);
   ASSERT_EQ(s.patients[0].status, "ok") << s.patients[0].reason;
+  // Rest-length recovery counts every fitted factor once, as identified or not, and a factor
+  // within the tolerance of the truth as recovered.
+  int factors = 0, identified = 0, within = 0;
+  for (const auto& [name, v] : s.patients[0].fitted.items()) {
+    ++factors;
+    if (!s.patients[0].identified.value(name, false)) continue;
+    ++identified;
+    within += std::abs(v.get<double>() - s.patients[0].truth[name].get<double>()) <= 0.05;
+  }
+  EXPECT_GE(factors, 2);
+  const json& rr = s.summary["calibration"]["restlength_recovery"];
+  EXPECT_EQ(rr["identified"].get<int>() + rr["unidentified"].get<int>(), factors);
+  EXPECT_EQ(rr["identified"].get<int>(), identified);
+  EXPECT_EQ(rr["identified_within_tolerance"].get<int>(), within);
   EXPECT_EQ(s.patients[0].error_calibrated_mm, s.patients[0].error_calibrated_fit_model_mm);
   EXPECT_NEAR(s.patients[0].error_default_mm, s.patients[0].error_default_fit_model_mm, 1e-9);
 }

@@ -63,7 +63,7 @@ class Cli : public ::testing::Test {
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
   for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model", "simulate",
                         "calibrate", "clip", "study cohort", "study sensitivity", "study convergence",
-                        "study clip", "study robustness"}) {
+                        "study clip", "study robustness", "study detection"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -168,26 +168,31 @@ TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
     std::ifstream f(path("m.yml.gz"));
     EXPECT_TRUE(f.good());
   }
-  // The benchmark of that model on one held-out patient (its truth cached beside the others);
-  // its figures say what made them.
-  const std::string bench = "bench detect --model " + path("m.yml.gz") +
-                            " --test 1 --seed 77 --noise-levels 0.004,0.1 --json " + path("d.json") + small;
-  r = run(bench);
+  // The detection study of that model on one held-out patient (its truth cached beside the
+  // others); its figures say what made them.
+  const std::string study = "study detection --model " + path("m.yml.gz") +
+                            " --test 1 --seed 77 --noise-levels 0.004,0.1 --out " + path("d") + small;
+  r = run(study);
   ASSERT_EQ(r.code, 0) << r.out << r.err;
-  std::ifstream f(path("d.json"));
+  std::ifstream f(path("d/study.json"));
   std::stringstream js;
   js << f.rdbuf();
   const std::string j = js.str();
   for (const char* key : {"\"error_mean_mm\"", "\"error_sd_mm\"", "\"landmark_error_mm\"", "\"papillary_error_mm\"",
-                          "\"s_per_volume\"", "\"n_train\": 3", "\"n_test\": 1", "\"noise_levels\"",
+                          "\"s_per_volume\"", "\"test_patients\"", "\"noise_levels\"",
                           "\"posteromedial_papillary_tip\"", "\"synthetic\": true", "\"mvtwin_version\""})
     EXPECT_NE(j.find(key), std::string::npos) << key << " missing from\n" << j.substr(0, 2000);
-  EXPECT_NE(r.out.find("patient 1/1"), std::string::npos) << r.out;
-  // Run again: everything is resumed from the JSON, nothing is detected twice.
-  r = run(bench);
+  EXPECT_NE(r.out.find("paper (real TEE"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("[detect 2/2]"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "d" / "report.html"));
+  // Run again: everything is resumed, nothing is detected twice.
+  r = run(study);
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("resuming: 2 detections"), std::string::npos) << r.out;
-  EXPECT_EQ(r.out.find("patient 1/1"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("done before (resumed)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("s/volume"), std::string::npos) << r.err;
+  // The benchmark it replaced is gone.
+  r = run("bench detect --json " + path("b.json"));
+  EXPECT_NE(r.code, 0);
 }
 
 TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
@@ -416,7 +421,7 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
   for (const char* d : {"v", "k", "r"}) EXPECT_FALSE(fs::exists(path(d) + "/study.json")) << d;
   // The benchmarks that became studies are gone, not silently kept.
-  for (const char* b : {"bench accuracy", "bench stability"}) {
+  for (const char* b : {"bench accuracy", "bench stability", "bench calibrate"}) {
     r = run(std::string(b) + " --json " + path("b.json"));
     EXPECT_NE(r.code, 0) << b;
     EXPECT_FALSE(fs::exists(path("b.json"))) << b;

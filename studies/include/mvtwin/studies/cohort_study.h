@@ -60,6 +60,9 @@ struct CohortStudyOptions {
   std::string fit = "restlength,stiffness,pressure";
   std::string method = "bobyqa";
   int max_simulations = 50;
+  /// A fitted rest-length factor within this of the truth counts as recovered (the summary's
+  /// `restlength_recovery`, over the factors the data identify).
+  double restlength_tolerance = 0.05;
   /// Simulations at once in each process: patients in the default stage; in the calibration
   /// stage, patients too (a calibration's optimizer is sequential), each calibration running
   /// its parallel phases (scan, first steps) on the cores left when fewer patients remain.
@@ -96,8 +99,14 @@ struct CohortPatient {
   /// The calibration's own figures, on `fit_model`: before (the defaults) and after.
   double error_default_fit_model_mm = 0, error_calibrated_fit_model_mm = 0;
   double calibrate_s = 0;
-  int simulations = 0;
+  int simulations = 0, failed_simulations = 0;
+  std::string termination;  ///< why the optimizer stopped
+  /// The noise SD the fit estimates from its residuals, mm (what a good fit's error nears).
+  double noise_fit_mm = 0;
   nlohmann::json fitted, truth;  ///< name -> value (truth only for virtual patients)
+  /// name -> SD from the fit's Jacobian (user units; null where undetermined), and name ->
+  /// whether the data determine the parameter (inverse::CalibrationResult::identified).
+  nlohmann::json sd, identified;
   nlohmann::json to_json() const;
   static CohortPatient from_json(const nlohmann::json& j);
 };

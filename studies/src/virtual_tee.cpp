@@ -1,21 +1,24 @@
-#include "virtual_tee.h"
+#include "mvtwin/studies/virtual_tee.h"
 
 #include <opencv2/core.hpp>
 
 #include <chrono>
 #include <cmath>
 #include <map>
-#include <iostream>
+#include <mutex>
+#include <sstream>
 
-#include "jobs.h"
-#include "output_files.h"
+#include "mvtwin/core/cache_key.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/studies/study_folder.h"
+#include "mvtwin/studies/work_pool.h"
+#include "study_util.h"
 
-namespace mvtwin::tools {
+namespace mvtwin::studies {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -27,15 +30,12 @@ const char* phase_of(const ValveSequence& s, int f) {
   return "closing";
 }
 
-/// Mean and sample SD of `v` (SD 0 for fewer than two values).
-std::pair<double, double> mean_sd(const std::vector<double>& v) {
-  if (v.empty()) return {std::nan(""), std::nan("")};
-  double m = 0;
-  for (double x : v) m += x;
-  m /= static_cast<double>(v.size());
-  double s = 0;
-  for (double x : v) s += (x - m) * (x - m);
-  return {m, v.size() > 1 ? std::sqrt(s / static_cast<double>(v.size() - 1)) : 0.0};
+double mean_of(const std::vector<double>& v) { return detail::stats(v).mean; }
+
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
 }
 
 }  // namespace
@@ -50,8 +50,8 @@ json detection_errors(const Patient& truth, const std::vector<ValveFrame>& detec
              {"phase", phase_of(truth.sequence, static_cast<int>(f))},
              {"seconds", info[f].seconds}};
     if (t.la_surface && detected[f].la_surface) {
-      const SymmetricDistance d =
-          symmetric_surface_distance(detected[f].la_surface->triangulate(), t.la_surface->triangulate());
+      const SymmetricDistance d = symmetric_surface_distance(detected[f].la_surface->triangulate(),
+                                                             t.la_surface->triangulate());
       row["surface_error_mm"] = d.symmetric.mean;
       row["truth_to_detected_mm"] = d.b_to_a.mean;
     }
@@ -85,13 +85,15 @@ json summarize_detections(const std::vector<const json*>& runs) {
         if (name.find("papillary") != std::string::npos) papillary.push_back(e.get<double>());
       }
     }
-    if (!mine.empty()) patient_means.push_back(mean_sd(mine).first);
+    if (!mine.empty()) patient_means.push_back(mean_of(mine));
   }
   json lm = json::object();
-  for (const auto& [name, v] : by_landmark) lm[name] = mean_sd(v).first;
+  for (const auto& [name, v] : by_landmark) lm[name] = mean_of(v);
   json phase = json::object();
-  for (const auto& [name, v] : by_phase) phase[name] = {{"error_mean_mm", mean_sd(v).first}, {"frames", v.size()}};
-  const auto [m, sd] = mean_sd(all);
+  for (const auto& [name, v] : by_phase)
+    phase[name] = {{"error_mean_mm", mean_of(v)}, {"frames", v.size()}};
+  const detail::Stats st = detail::stats(all);
+  const double m = st.mean, sd = st.sd;
   double worst = 0;
   for (double e : all) worst = std::max(worst, e);
   return {{"patients", runs.size()},
@@ -99,11 +101,11 @@ json summarize_detections(const std::vector<const json*>& runs) {
           {"error_mean_mm", m},
           {"error_sd_mm", sd},
           {"error_max_frame_mm", worst},
-          {"error_patient_mean_sd_mm", mean_sd(patient_means).second},
+          {"error_patient_mean_sd_mm", detail::stats(patient_means).sd},
           {"by_phase", phase},
           {"landmark_error_mm", lm},
-          {"papillary_error_mm", mean_sd(papillary).first},
-          {"s_per_volume", mean_sd(seconds).first}};
+          {"papillary_error_mm", mean_of(papillary)},
+          {"s_per_volume", mean_of(seconds)}};
 }
 
 VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
@@ -117,12 +119,13 @@ VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
   key = cache_key(description);
 }
 
-Patient virtual_tee_patient(std::uint64_t seed, int i, const VirtualTeeTruth& truth, const fs::path& cache,
-                            std::mutex& io) {
-  const fs::path cached =
-      cache.empty() ? fs::path() : cache / ("truth_" + std::to_string(seed) + "_" + truth.key + ".h5");
+Patient virtual_tee_patient(std::uint64_t seed, int i, const VirtualTeeTruth& truth,
+                            const fs::path& cache) {
+  const fs::path cached = cache.empty()
+                              ? fs::path()
+                              : cache / ("truth_" + std::to_string(seed) + "_" + truth.key + ".h5");
   if (!cached.empty()) {
-    std::lock_guard<std::mutex> lock(io);
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
     if (fs::exists(cached)) return read_patient(cached, false);
   }
   VirtualPatientOptions po;
@@ -130,7 +133,7 @@ Patient virtual_tee_patient(std::uint64_t seed, int i, const VirtualTeeTruth& tr
   Patient p = make_virtual_patient(seed, po);
   forward::simulate_observed_closure(&p, truth.closure);
   if (!cached.empty()) {
-    std::lock_guard<std::mutex> lock(io);
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
     fs::create_directories(cache);
     write_patient(cached, p);
   }
@@ -142,32 +145,41 @@ std::vector<ImageVolume> render_virtual_tee(const Patient& p, detection::TeeRend
   return detection::render_tee(p.sequence, render);
 }
 
-VirtualTrainingResult train_on_virtual_cohort(const std::vector<std::uint64_t>& seeds, const VirtualTeeTruth& truth,
+VirtualTrainingResult train_on_virtual_cohort(const std::vector<std::uint64_t>& seeds,
+                                              const VirtualTeeTruth& truth,
                                               const detection::TeeRenderOptions& render,
                                               const std::vector<double>& noise,
                                               const detection::DetectorOptions& options, int jobs,
-                                              const fs::path& cache, std::mutex& io) {
+                                              const fs::path& cache,
+                                              const std::function<void(const std::string&)>& log) {
+  std::mutex log_mutex;
+  auto say = [&](const std::string& line) {
+    std::lock_guard<std::mutex> lock(log_mutex);
+    if (log) log(line);
+  };
   std::vector<Patient> train(seeds.size());
   std::vector<std::vector<ImageVolume>> images(seeds.size());
   std::vector<bool> ok(seeds.size(), false);
   const auto t0 = std::chrono::steady_clock::now();
-  run_jobs(seeds.size(), jobs, [&](std::size_t k) {
+  const int n = static_cast<int>(seeds.size());
+  make_local_pool()->map(n, jobs, [&](int i) -> std::string {
+    const auto k = static_cast<std::size_t>(i);
+    const std::string which = "training patient " + std::to_string(i + 1) + "/" + std::to_string(n);
     try {
-      train[k] = virtual_tee_patient(seeds[k], static_cast<int>(k), truth, cache, io);
+      train[k] = virtual_tee_patient(seeds[k], i, truth, cache);
       detection::TeeRenderOptions o = render;
       if (!noise.empty()) o.noise = noise[k % noise.size()];
       images[k] = render_virtual_tee(train[k], o);
       ok[k] = true;
-      std::lock_guard<std::mutex> lock(io);
-      std::cout << "training patient " << k + 1 << "/" << seeds.size() << " (" << train[k].id << " [SYNTHETIC], "
-                << pathology_name(train[k].truth->pathology) << "): " << images[k].size() << " volumes rendered (noise "
-                << o.noise << ")"
-                << std::endl;
+      std::ostringstream line;
+      line << which << " (" << train[k].id << " [SYNTHETIC], "
+           << pathology_name(train[k].truth->pathology) << "): " << images[k].size()
+           << " volumes rendered (noise " << o.noise << ")";
+      say(line.str());
     } catch (const Error& e) {
-      std::lock_guard<std::mutex> lock(io);
-      std::cout << "training patient " << k + 1 << "/" << seeds.size() << ": skipped (" << e.what() << ")"
-                << std::endl;
+      say(which + ": skipped (" + e.what() + ")");
     }
+    return {};
   });
   VirtualTrainingResult r;
   std::vector<detection::TrainingVolume> data;
@@ -175,20 +187,23 @@ VirtualTrainingResult train_on_virtual_cohort(const std::vector<std::uint64_t>& 
     if (!ok[k]) continue;
     r.patients.push_back(train[k].id);
     for (std::size_t f = 0; f < images[k].size(); ++f)
-      if (train[k].sequence.frames[f].la_surface) data.push_back({&images[k][f], &train[k].sequence.frames[f]});
+      if (train[k].sequence.frames[f].la_surface)
+        data.push_back({&images[k][f], &train[k].sequence.frames[f]});
   }
   r.volumes = static_cast<int>(data.size());
   r.prepare_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::cout << "training on " << data.size() << " volumes of " << r.patients.size() << " patients (" << r.prepare_s
-            << " s to simulate and render)" << std::endl;
+  say("training on " + std::to_string(data.size()) + " volumes of " +
+      std::to_string(r.patients.size()) + " patients (" + number_text(r.prepare_s) +
+      " s to simulate and render)");
   const int threads = cv::getNumThreads();
   cv::setNumThreads(jobs);
   const auto t1 = std::chrono::steady_clock::now();
-  r.detector = detection::ValveDetector::train(data, options, [](const std::string& s) { std::cout << "  " << s << std::endl; });
+  r.detector =
+      detection::ValveDetector::train(data, options, [&](const std::string& s) { say("  " + s); });
   r.train_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   cv::setNumThreads(threads);
-  std::cout << "trained in " << r.train_s << " s" << std::endl;
+  say("trained in " + number_text(r.train_s) + " s");
   return r;
 }
 
-}  // namespace mvtwin::tools
+}  // namespace mvtwin::studies
