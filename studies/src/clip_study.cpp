@@ -335,13 +335,9 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
 
 namespace {
 
-json nullable(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+using detail::nullable;
 
-std::string stat_text(const json& s, int digits = 1) {
-  if (!s.at("mean").is_number()) return "n/a";
-  return mean_sd(s.at("mean").get<double>(),
-                 s.at("sd").is_number() ? s.at("sd").get<double>() : kNaN, digits);
-}
+std::string stat_text(const json& s, int digits = 1) { return detail::stats_text(s, digits); }
 
 void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const StudyFolder& f) {
   json patients = json::array();

@@ -39,9 +39,7 @@ using detail::parameters_json;
 using detail::seconds_since;
 using detail::stats_json;
 
-double num(const json& j, const char* key) {
-  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
-}
+double num(const json& j, const char* key) { return detail::number_at(j, key); }
 
 /// One patient of the study: where its data come from.
 struct Entry {
@@ -158,7 +156,7 @@ json CohortStudyOptions::config() const {
 // ---- a patient's record ------------------------------------------------------------------------
 
 json CohortPatient::to_json() const {
-  auto n = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  const auto n = detail::nullable;
   json j{{"index", index},
          {"id", id},
          {"pathology", pathology},
@@ -434,7 +432,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
         for (int k = 0; k < obj.space().size(); ++k) {
           const std::string& name = obj.space().specs()[k].name;
           c.fitted[name] = r.fitted[k];
-          c.sd[name] = std::isfinite(r.sd[k]) ? json(r.sd[k]) : json(nullptr);
+          c.sd[name] = detail::nullable(r.sd[k]);
           c.identified[name] = static_cast<bool>(r.identified[k]);
         }
         if (p.truth) {  // the truth in the fit's (user) units, e.g. mmHg for the pressure
@@ -639,10 +637,8 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
 
   // Plots.
   const json& s = r.summary;
-  auto mean_of = [](const json& st) {
-    return st["mean"].is_number() ? st["mean"].get<double>() : kNaN;
-  };
-  auto sd_of = [](const json& st) { return st["sd"].is_number() ? st["sd"].get<double>() : kNaN; };
+  auto mean_of = [](const json& st) { return detail::number_at(st, "mean"); };
+  auto sd_of = [](const json& st) { return detail::number_at(st, "sd"); };
   {
     Plot pl;
     pl.title = "Point-to-mesh error per patient";
@@ -780,9 +776,7 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
     const json& cs = s["calibration"];
     rep.heading("Calibration");
     rows.clear();
-    auto max_of = [](const json& st) {
-      return st.contains("max") && st["max"].is_number() ? st["max"].get<double>() : kNaN;
-    };
+    auto max_of = [](const json& st) { return detail::number_at(st, "max"); };
     rows.push_back({"patients calibrated", std::to_string(cs["calibrated"].get<int>())});
     rows.push_back({"simulations per patient",
                     mean_sd(mean_of(cs["simulations"]), sd_of(cs["simulations"]), 1) + " (max " +

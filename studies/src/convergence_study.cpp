@@ -190,16 +190,10 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
   const std::unique_ptr<StudyFolder> folder =
       open_study_folder(pool, o.out, "convergence", o.config());
 
-  Patient patient;
   ValveParameters parameters;
   forward::ClosureOptions base = o.model;
-  if (o.patient_file.empty()) {
-    patient = make_cohort_patient(o.seed, o.patient);
-    parameters = patient.truth->parameters;
-    base.ruptured_marginal_chordae = patient.truth->ruptured_marginal_chordae;
-  } else {
-    patient = read_patient(o.patient_file, false);
-  }
+  const Patient patient =
+      detail::study_patient(o.seed, o.patient, o.patient_file, &parameters, &base);
   base.progress = nullptr;
   base.record_every = 0;  // the end state is all the study compares
 
@@ -305,7 +299,7 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
 
 namespace {
 
-json nullable(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+using detail::nullable;
 
 /// The paper's errors against the finest run of each series (its Sec. 4.1).
 std::string paper_error(const std::string& factor, const std::string& value) {

@@ -389,9 +389,7 @@ DetectionStudyResult run_detection_study(const DetectionStudyOptions& o, WorkPoo
 
 namespace {
 
-double field(const json& j, const char* key) {
-  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
-}
+double field(const json& j, const char* key) { return detail::number_at(j, key); }
 
 void write_outputs(const DetectionStudyOptions& o, const DetectionStudyResult& r,
                    const StudyFolder& folder) {

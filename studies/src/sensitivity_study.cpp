@@ -144,16 +144,10 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
   const std::unique_ptr<StudyFolder> folder =
       open_study_folder(pool, o.out, "sensitivity", o.config());
 
-  Patient patient;
   ValveParameters baseline;
   forward::ClosureOptions model = o.model;
-  if (o.patient_file.empty()) {
-    patient = make_cohort_patient(o.seed, o.patient);
-    baseline = patient.truth->parameters;
-    model.ruptured_marginal_chordae = patient.truth->ruptured_marginal_chordae;
-  } else {
-    patient = read_patient(o.patient_file, false);
-  }
+  const Patient patient =
+      detail::study_patient(o.seed, o.patient, o.patient_file, &baseline, &model);
   model.progress = nullptr;
   // Record every sample_s of observed time (the simulated closure is `stretch` times longer).
   model.record_every =
@@ -262,10 +256,8 @@ void write_outputs(const SensitivityStudyOptions& o, const SensitivityStudyResul
   json cases = json::array();
   for (const auto& k : r.cases) {
     json j = case_json(k);
-    j["max_anterior_diff_mm"] =
-        std::isfinite(k.max_anterior_diff_mm) ? json(k.max_anterior_diff_mm) : json(nullptr);
-    j["max_posterior_diff_mm"] =
-        std::isfinite(k.max_posterior_diff_mm) ? json(k.max_posterior_diff_mm) : json(nullptr);
+    j["max_anterior_diff_mm"] = detail::nullable(k.max_anterior_diff_mm);
+    j["max_posterior_diff_mm"] = detail::nullable(k.max_posterior_diff_mm);
     cases.push_back(j);
   }
   json prov = detail::provenance(o.command, r.workers, r.wall_s);

@@ -5,7 +5,9 @@
 
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
+#include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/studies/report.h"
 
 namespace mvtwin::studies::detail {
 
@@ -46,6 +48,31 @@ nlohmann::json stats_json(const std::vector<double>& v) {
           {"sd", s.n ? json(s.sd) : json(nullptr)},
           {"min", s.n ? json(s.min) : json(nullptr)},
           {"max", s.n ? json(s.max) : json(nullptr)}};
+}
+
+nlohmann::json nullable(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+double number_at(const nlohmann::json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
+}
+
+std::string stats_text(const nlohmann::json& s, int digits) {
+  if (!std::isfinite(number_at(s, "mean"))) return "n/a";
+  return mean_sd(number_at(s, "mean"), number_at(s, "sd"), digits);
+}
+
+Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
+                      ValveParameters* parameters, forward::ClosureOptions* model) {
+  if (!file.empty()) {
+    *parameters = ValveParameters{};
+    return read_patient(file, false);
+  }
+  Patient p = make_cohort_patient(seed, index);
+  *parameters = p.truth->parameters;
+  model->ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
+  return p;
 }
 
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s) {

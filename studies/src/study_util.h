@@ -2,12 +2,15 @@
 // Internal helpers the studies share.
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "mvtwin/core/patient.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/forward/closure_simulation.h"
 
@@ -32,6 +35,19 @@ struct Stats {
 Stats stats(const std::vector<double>& v);
 /// {"n", "mean", "sd", "min", "max"} (null when n = 0).
 nlohmann::json stats_json(const std::vector<double>& v);
+
+/// `v` as JSON, null when not finite (JSON has no NaN).
+nlohmann::json nullable(double v);
+/// `j[key]` as a number; NaN when absent, null or not a number.
+double number_at(const nlohmann::json& j, const char* key);
+/// "mean ± SD" of a stats_json object with `digits` decimals; "n/a" without values.
+std::string stats_text(const nlohmann::json& s, int digits = 2);
+
+/// The patient of a one-patient study: virtual patient `index` of cohort `seed` at its hidden
+/// parameters (its ruptured chordae set on `model`), or `file` at the default parameters.
+/// Throws mvtwin::Error for an unreadable file.
+Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
+                      ValveParameters* parameters, forward::ClosureOptions* model);
 
 /// The provenance every study file records.
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s);
