@@ -558,7 +558,14 @@ void write_outputs(const DetectionStudyOptions& o, const DetectionStudyResult& r
     fig.y_label = "surface error, mm";
     for (const auto& run : r.runs) {
       if (!run.ok || run.noise != o.noise_levels.front()) continue;
-      PlotSeries s{run.id + " (" + run.pathology + ")", {}, {}, true, true, {}};
+      // Short names (the ids are 19 digits): the cohort member and pathology.
+      PlotSeries s{
+          "member " + std::to_string(kTestOffset + run.patient) + " (" + run.pathology + ")",
+          {},
+          {},
+          true,
+          true,
+          {}};
       for (const auto& f : run.frames)
         if (f.contains("surface_error_mm")) {
           s.x.push_back(1000 * field(f, "time_s"));
