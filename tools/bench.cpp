@@ -61,7 +61,7 @@ Run run(const Patient& p, forward::ClosureOptions o) {
 
 json summary_json(const Run& r) {
   const auto& s = r.result.summary;
-  return {{"status", s.status == forward::ClosureStatus::kConverged ? "converged" : "failed"},
+  return {{"status", s.converged() ? "converged" : "failed"},
           {"reason", s.reason},
           {"wall_s", s.wall_s},
           {"steps", s.steps},
@@ -130,7 +130,7 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
   o.progress = progress_line("  reference");
   const forward::ClosureResult r = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   std::cout << r.summary.brief_report() << "\n";
-  if (r.summary.status != forward::ClosureStatus::kConverged)
+  if (!r.summary.converged())
     throw Error("bench: the reference run failed: " + r.summary.reason);
   if (!file.empty()) {
     SimulationRecord rec = forward::make_simulation_record(r, ro, p.truth->parameters);
@@ -285,7 +285,7 @@ void register_bench(CLI::App& app, Context& ctx) {
             std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
                           name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations,
                           s.pcg_iterations, e.mean, e.max,
-                          s.status == forward::ClosureStatus::kConverged
+                          s.converged()
                               ? ""
                               : ("  FAILED: " + s.reason).c_str());
             std::cout << line << std::flush;

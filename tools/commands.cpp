@@ -616,7 +616,7 @@ void register_commands(CLI::App& app, Context& ctx) {
           std::cout << "wrote " << files.size() << " files to " << *dir
                     << " (open simulation.pvd and leaflets_end.vtu)\n";
         }
-        return r.summary.status == forward::ClosureStatus::kConverged ? 0 : 4;
+        return r.summary.converged() ? 0 : 4;
       };
     });
   }

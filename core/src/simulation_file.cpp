@@ -42,6 +42,7 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
                             {r.patient_id, r.patient_file, r.synthetic, r.provenance, r.options});
     root.attr("status", r.status);
     root.attr("reason", r.reason);
+    root.attr("outcome", r.outcome);
     root.attr("units_length", std::string(units::kLength));
     root.attr("units_time", std::string(units::kTime));
     root.attr("units_stress", std::string(units::kStress));
@@ -104,6 +105,8 @@ SimulationRecord read_simulation_file(const std::filesystem::path& path) {
   r.options = std::move(h.options);
   r.status = root.attr_string("status");
   r.reason = root.attr_string("reason");
+  // Files written before the outcome was recorded have none.
+  if (root.has_attr("outcome")) r.outcome = root.attr_string("outcome");
   r.parameters.for_each([&](const std::string& n, double& v, const char*) {
     v = root.open_group("parameters").read_scalar(n);
   });

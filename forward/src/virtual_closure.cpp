@@ -36,7 +36,7 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   o.record_every = std::max(1, static_cast<int>(std::lround(0.02 / o.dt)));
   o.ruptured_marginal_chordae = p->truth->ruptured_marginal_chordae;
   const ClosureResult r = simulate_closure(seq, p->truth->parameters, o);
-  if (r.summary.status != ClosureStatus::kConverged) {
+  if (!r.summary.converged()) {
     throw Error("observed closure of '" + p->id + "' failed: " + r.summary.reason);
   }
   Rng rng(p->provenance.seed * 7919 + 17);

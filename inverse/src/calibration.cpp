@@ -342,6 +342,7 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
   r.history = tr.history();
   r.simulations = objective.simulations();
   r.failed_simulations = objective.failed_simulations();
+  r.failures_by_outcome = objective.failures_by_outcome();
   r.cache_hits = objective.cache_hits();
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

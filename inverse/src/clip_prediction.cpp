@@ -56,7 +56,7 @@ std::vector<ClipSite> parse_clip_sites(const std::string& text) {
 
 ClosureQuality closure_quality(const forward::ClosureResult& r) {
   ClosureQuality q;
-  q.converged = r.summary.status == forward::ClosureStatus::kConverged;
+  q.converged = r.summary.converged();
   q.reason = r.summary.reason;
   if (r.samples.empty()) return q;
   const forward::ClosureSample& s = r.samples.back();

@@ -83,7 +83,8 @@ forward::ClosureResult ClosureObjective::simulate(const Eigen::VectorXd& x) cons
 Evaluation ClosureObjective::compare(const forward::ClosureResult& r) const {
   Evaluation e;
   try {
-    if (r.summary.status != forward::ClosureStatus::kConverged) {
+    if (!r.summary.converged()) {
+      e.outcome = r.summary.outcome;
       e.reason = r.summary.reason;
     } else {
       e.residuals.resize(num_residuals_);
@@ -108,10 +109,12 @@ Evaluation ClosureObjective::compare(const forward::ClosureResult& r) const {
       if (k != num_residuals_) throw Error("objective: residual count changed");
       e.mean_mm = e.residuals.mean();
       e.ok = std::isfinite(e.mean_mm);
+      e.outcome = e.ok ? Outcome::kConverged : Outcome::kNonFiniteState;
       if (!e.ok) e.reason = "non-finite distances";
     }
   } catch (const std::exception& ex) {
     e.ok = false;
+    e.outcome = Outcome::kInvalidInput;
     e.reason = ex.what();
   }
   if (!e.ok) e.residuals.resize(0);
@@ -131,6 +134,7 @@ Evaluation ClosureObjective::compute(const Eigen::VectorXd& x) const {
     }
   } catch (const std::exception& ex) {
     e.ok = false;
+    e.outcome = Outcome::kInvalidInput;
     e.reason = ex.what();
     e.residuals.resize(0);
   }
@@ -157,7 +161,10 @@ Evaluation ClosureObjective::evaluate(const Eigen::VectorXd& x) {
   Evaluation e = compute(x);
   std::lock_guard<std::mutex> lock(mutex_);
   ++simulations_;
-  if (!e.ok) ++failed_;
+  if (!e.ok) {
+    ++failed_;
+    ++failures_[outcome_name(e.outcome)];
+  }
   cache_.emplace(key, e);
   return e;
 }
@@ -183,6 +190,10 @@ int ClosureObjective::simulations() const {
 int ClosureObjective::failed_simulations() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return failed_;
+}
+std::map<std::string, int> ClosureObjective::failures_by_outcome() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return failures_;
 }
 int ClosureObjective::cache_hits() const {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -176,6 +176,7 @@ json CohortPatient::to_json() const {
          {"error_calibrated_fit_model_mm", n(error_calibrated_fit_model_mm)},
          {"simulations", simulations},
          {"failed_simulations", failed_simulations},
+         {"failures_by_outcome", failures_by_outcome},
          {"termination", termination},
          {"noise_fit_mm", n(noise_fit_mm)},
          {"fitted", fitted.is_null() ? json::object() : fitted},
@@ -211,6 +212,8 @@ CohortPatient CohortPatient::from_json(const json& j) {
   p.error_calibrated_fit_model_mm = num(j, "error_calibrated_fit_model_mm");
   p.simulations = j.value("simulations", 0);
   p.failed_simulations = j.value("failed_simulations", 0);
+  p.failures_by_outcome =
+      j.value("failures_by_outcome", std::map<std::string, int>{});
   p.termination = j.value("termination", "");
   p.noise_fit_mm = num(j, "noise_fit_mm");
   p.fitted = j.value("fitted", json::object());
@@ -424,6 +427,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
         }
         c.simulations = r.simulations;
         c.failed_simulations = r.failed_simulations;
+        c.failures_by_outcome = r.failures_by_outcome;
         c.termination = r.termination;
         c.noise_fit_mm = r.noise_mm;
         c.fitted = json::object();
@@ -522,12 +526,14 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   if (o.calibrate) {
     std::vector<double> sims, secs, ratio, noise_fit;
     int failed_sims = 0, calibrated = 0;
+    std::map<std::string, int> failures;
     for (const auto& p : result.patients) {
       if (!std::isfinite(p.error_calibrated_mm)) continue;
       ++calibrated;
       sims.push_back(p.simulations);
       secs.push_back(p.calibrate_s);
       failed_sims += p.failed_simulations;
+      for (const auto& [kind, count] : p.failures_by_outcome) failures[kind] += count;
       if (std::isfinite(p.noise_fit_mm)) noise_fit.push_back(p.noise_fit_mm);
       if (p.synthetic && o.folder.empty() && o.observation.noise_mm > 0)
         ratio.push_back(p.error_calibrated_mm / o.observation.noise_mm);
@@ -536,6 +542,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
                                      {"calibrated", calibrated},
                                      {"simulations", stats_json(sims)},
                                      {"failed_simulations", failed_sims},
+                                     {"failures_by_outcome", failures},
                                      {"calibrate_s", stats_json(secs)},
                                      {"noise_fit_mm", stats_json(noise_fit)},
                                      {"error_calibrated_over_noise", stats_json(ratio)},

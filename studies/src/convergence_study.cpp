@@ -148,13 +148,13 @@ json simulate_one(const Patient& patient, const ValveParameters& parameters,
     const forward::ClosureResult r =
         forward::simulate_closure(patient.sequence, parameters, options);
     const auto& s = r.summary;
-    j = {{"status", s.status == forward::ClosureStatus::kConverged ? "ok" : "failed"},
+    j = {{"status", s.converged() ? "ok" : "failed"},
          {"reason", s.reason},
          {"wall_s", s.wall_s},
          {"steps", s.steps},
          {"dofs", s.dofs},
          {"tets", s.elements}};
-    if (s.status == forward::ClosureStatus::kConverged) {
+    if (s.converged()) {
       const LeafletGrid& g = r.samples.back().la_surface;
       std::vector<double> xyz(static_cast<std::size_t>(g.points().rows()) * 3);
       for (Eigen::Index k = 0; k < g.points().rows(); ++k)

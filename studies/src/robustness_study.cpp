@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/outcome.h"
 #include "mvtwin/core/rng.h"
 #include "mvtwin/core/table_file.h"
 #include "mvtwin/core/units.h"
@@ -53,15 +54,6 @@ json RobustnessStudyOptions::config() const {
   m.erase("dt");  // drawn per case
   // Not the number of runs: case i does not depend on it, so a larger --runs extends a study.
   return {{"model", m}, {"seed", seed}};
-}
-
-std::string failure_kind(const std::string& reason) {
-  if (reason.find("inverted") != std::string::npos) return "inverted element";
-  if (reason.find("pass through") != std::string::npos) return "leaflet crossing";
-  if (reason.find("degenerate") != std::string::npos) return "degenerate anatomy";
-  if (reason.find("linear solver") != std::string::npos) return "linear solver";
-  if (reason.find("non-finite") != std::string::npos) return "non-finite values";
-  return "other";
 }
 
 namespace {
@@ -132,15 +124,17 @@ RobustnessCase run_case(const RobustnessStudyOptions& o, int i) {
     for (const auto& s : r.samples) finite = finite && s.la_surface.points().allFinite();
     if (!finite) {
       row.outcome = "nonfinite_output";
-    } else if (r.summary.status == forward::ClosureStatus::kConverged) {
+    } else if (r.summary.converged()) {
       row.outcome = "converged";
     } else {
       row.outcome = "clean_failure";
       row.reason = r.summary.reason;
+      row.failure_kind = outcome_name(r.summary.outcome);
     }
   } catch (const Error& e) {
     row.outcome = "clean_failure";
     row.reason = e.what();
+    row.failure_kind = outcome_name(Outcome::kInvalidInput);
   } catch (const std::exception& e) {
     row.outcome = "crash";
     row.reason = e.what();
@@ -148,7 +142,6 @@ RobustnessCase run_case(const RobustnessStudyOptions& o, int i) {
     row.outcome = "crash";
     row.reason = "unknown exception";
   }
-  if (row.outcome == "clean_failure") row.failure_kind = failure_kind(row.reason);
   return row;
 }
 

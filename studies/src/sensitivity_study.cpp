@@ -189,7 +189,7 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
       if (m.model.marginal_chordae != model.model.marginal_chordae)
         m.ruptured_marginal_chordae.clear();
       const forward::ClosureResult r = forward::simulate_closure(patient.sequence, par, m);
-      if (r.summary.status != forward::ClosureStatus::kConverged) throw Error(r.summary.reason);
+      if (!r.summary.converged()) throw Error(r.summary.reason);
       for (const auto& s : r.samples) {
         k.time_s.push_back(s.observed_time_s);
         k.anterior_tip_mm.push_back(s.anterior_tip_mm);

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/point_triangle_distance.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_scene.h"
@@ -35,7 +36,7 @@ TEST(ClosureSimulation, NoLoadNoMotionStaysAtRest) {
   par.peak_pressure_mpa = 0.0;
   for (double& f : par.restlength_factor) f = 3.0;  // slack chordae
   const ClosureResult r = simulate_closure(p.sequence, par, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const LeafletGrid& first = r.samples.front().la_surface;
   const LeafletGrid& last = r.samples.back().la_surface;
   EXPECT_LT((first.points() - last.points()).cwiseAbs().maxCoeff(), 1e-9);
@@ -64,7 +65,7 @@ TEST(ClosureSimulation, EnergyDecaysUnderDampingWithNoLoad) {
   for (int i = 0; i < m.mesh.num_nodes(); ++i)
     o.initial_velocity.segment<3>(3 * i) = w.cross(m.mesh.V.row(i).transpose() - c);
   const ClosureResult r = simulate_closure(p.sequence, par, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   ASSERT_GT(r.samples.size(), 10u);
   const double e0 = r.samples.front().kinetic_energy + r.samples.front().elastic_energy;
   EXPECT_GT(e0, 0.0);
@@ -86,7 +87,7 @@ TEST(ClosureSimulation, SameInputSameOutput) {
   const ClosureOptions o = small_options();
   const ClosureResult a = simulate_closure(p.sequence, p.truth->parameters, o);
   const ClosureResult b = simulate_closure(p.sequence, p.truth->parameters, o);
-  EXPECT_EQ(a.summary.status, b.summary.status);
+  EXPECT_EQ(a.summary.outcome, b.summary.outcome);
   EXPECT_EQ(a.summary.steps, b.summary.steps);
   EXPECT_EQ(a.positions, b.positions);
 }
@@ -104,7 +105,7 @@ TEST(ClosureSimulation, PressureDoesPositiveWork) {
   par.peak_pressure_mpa *= 0.02;
   for (double& f : par.restlength_factor) f = 3.0;
   const ClosureResult r = simulate_closure(p.sequence, par, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const ValveModel m = build_valve_model(p.sequence, o.model);
   double work = 0.0, moved = 0.0;
   for (const Eigen::Vector3i& f : m.ventricular_faces) {
@@ -127,8 +128,9 @@ TEST(ClosureSimulation, FailureIsAStatusWithAReasonNeverAnAbort) {
   ValveParameters par = p.truth->parameters;
   par.peak_pressure_mpa = 50.0;  // ~375,000 mmHg: must invert elements
   const ClosureResult r = simulate_closure(p.sequence, par, o);
-  EXPECT_EQ(r.summary.status, ClosureStatus::kFailed);
-  EXPECT_NE(r.summary.reason.find("inverted"), std::string::npos) << r.summary.reason;
+  EXPECT_EQ(r.summary.outcome, Outcome::kInvertedElement) << r.summary.reason;
+  EXPECT_FALSE(r.summary.converged());
+  EXPECT_FALSE(r.summary.reason.empty());
   EXPECT_TRUE(r.positions.allFinite());
 }
 
@@ -198,7 +200,7 @@ TEST(ClosureSimulation, DefaultPatientClosesWithoutInterpenetration) {
   ASSERT_EQ(o.newton_iterations, 1);
   ASSERT_EQ(o.dt, 0.01);
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const ClosureSample& open = r.samples.front();
   const ClosureSample& closed = r.samples.back();
   std::cout << "orifice " << open.orifice_area_mm2 << " -> " << closed.orifice_area_mm2
@@ -228,13 +230,11 @@ TEST(ClosureSimulation, WithoutTheContactWallFreeEdgesSinkIn) {
   ClosureOptions o = coarse_default_patient_options();
   o.contact_wall_factor = 0.0;
   const ClosureResult refused = simulate_closure(p.sequence, p.truth->parameters, o);
-  EXPECT_EQ(refused.summary.status, ClosureStatus::kFailed);
-  EXPECT_NE(refused.summary.reason.find("would pass through"), std::string::npos)
-      << refused.summary.reason;
+  EXPECT_EQ(refused.summary.outcome, Outcome::kLeafletCrossing) << refused.summary.reason;
   EXPECT_GT(refused.summary.crossings, 0);
   o.contact_ccd = false;
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const ValveModel m = build_valve_model(p.sequence, o.model);
   int checked = 0;
   const int inside = count_inside_other_leaflet(m, r.positions, &checked);
@@ -246,20 +246,33 @@ TEST(ClosureSimulation, WithoutTheContactWallFreeEdgesSinkIn) {
   EXPECT_LT(r.summary.min_contact_distance_mm, 0.0);
 }
 
-// Large steps (dt = 0.05 s, 5x the paper's) still close the valve, with the same guarantees.
-TEST(ClosureSimulation, DefaultPatientClosesWithLargeSteps) {
+// Large steps (dt = 0.05 s, 5x the paper's) still close the valve, with the same guarantees,
+// and end near the closure at the paper's dt = 0.01 s: the closed atrial surfaces are compared
+// point to mesh, both ways. Measured: 0.53 mm mean, 2.85 mm max; most of it is the path
+// dependence of the leaflets' friction (without friction the same pair differs by 0.20 mm mean,
+// 1.75 max). Bounded with a margin so that a worse large step is seen.
+TEST(ClosureSimulation, DefaultPatientClosesWithLargeStepsNearThePapersStep) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "a full closure takes minutes under AddressSanitizer; run in the -Werror build";
 #endif
   const Patient p = make_virtual_patient(1);
   ClosureOptions o = coarse_default_patient_options();
+  const ClosureResult paper = simulate_closure(p.sequence, p.truth->parameters, o);
+  ASSERT_TRUE(paper.summary.converged()) << paper.summary.reason;
   o.dt = 0.05;
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const ClosureSample& closed = r.samples.back();
   EXPECT_LT(closed.orifice_area_mm2, 0.02 * closed.annulus_area_mm2);
   EXPECT_EQ(r.summary.interpenetrating_nodes, 0);
-  std::cout << "dt 0.05: " << r.summary.brief_report() << "\n";
+  const LeafletGrid& a = closed.la_surface;
+  const LeafletGrid& b = paper.samples.back().la_surface;
+  const DistanceStats ab = point_to_mesh_distance(a.points(), b.triangulate());
+  const DistanceStats ba = point_to_mesh_distance(b.points(), a.triangulate());
+  std::cout << "dt 0.05: " << r.summary.brief_report() << "\nclosed surface against dt 0.01: mean "
+            << ab.mean << " / " << ba.mean << " mm, max " << ab.max << " / " << ba.max << " mm\n";
+  EXPECT_LT(std::max(ab.mean, ba.mean), 0.8);
+  EXPECT_LT(std::max(ab.max, ba.max), 4.0);
 }
 
 // A clip (SPEC Sec. 5) between the middles of the two free edges: during the clip phase the
@@ -274,7 +287,7 @@ TEST(ClosureSimulation, ClipPullsTheSitesTogetherAndHolds) {
   ClosureOptions o = coarse_default_patient_options();
   o.clips.push_back({});  // anterior (0.25, 1), posterior (0.75, 1)
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
-  ASSERT_EQ(r.summary.status, ClosureStatus::kConverged) << r.summary.reason;
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   ASSERT_EQ(r.clip_gap_clipped_mm.size(), 1u);
   ASSERT_EQ(r.clip_gap_end_mm.size(), 1u);
   // At rest the sites are far apart; clipped, the atrial surfaces are within about a leaflet
@@ -293,7 +306,7 @@ TEST(ClosureSimulation, ClipPullsTheSitesTogetherAndHolds) {
   ClosureOptions open = coarse_default_patient_options();
   open.dt = 0.05;
   const ClosureResult u = simulate_closure(p.sequence, p.truth->parameters, open);
-  ASSERT_EQ(u.summary.status, ClosureStatus::kConverged) << u.summary.reason;
+  ASSERT_TRUE(u.summary.converged()) << u.summary.reason;
   EXPECT_LT(r.samples.front().orifice_area_mm2, 0.7 * u.samples.front().orifice_area_mm2);
   EXPECT_EQ(r.summary.interpenetrating_nodes, 0);
   EXPECT_LT(r.samples.back().orifice_area_mm2, 0.02 * r.samples.back().annulus_area_mm2);

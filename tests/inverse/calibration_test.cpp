@@ -68,7 +68,7 @@ TEST(ClosureObjective, CompareOfASimulationGivesEvaluatesDistances) {
   EXPECT_EQ(obj.simulations(), 1);       // compare is not counted
   // A failed simulation is a failed comparison, with its reason.
   forward::ClosureResult failed = obj.simulate(x);
-  failed.summary.status = forward::ClosureStatus::kFailed;
+  failed.summary.outcome = Outcome::kInvertedElement;
   failed.summary.reason = "inverted element 7";
   const Evaluation c = obj.compare(failed);
   EXPECT_FALSE(c.ok);
@@ -98,6 +98,10 @@ TEST(Calibration, RestLengthsImproveTheFitSurviveFailuresAndRepeat) {
   };
   const CalibrationResult a = run();
   EXPECT_GT(a.failed_simulations, 0) << "the forced failures were met (x0 - step)";
+  // Counted by typed outcome: a forced failure is a refused candidate (invalid input).
+  ASSERT_EQ(a.failures_by_outcome.size(), 1u);
+  EXPECT_EQ(a.failures_by_outcome.begin()->first, "invalid_input");
+  EXPECT_EQ(a.failures_by_outcome.begin()->second, a.failed_simulations);
   EXPECT_LT(a.error_after_mm, a.error_before_mm);
   EXPECT_GT(a.simulations, 8);
   EXPECT_GT(a.cache_hits, 0) << "BOBYQA's start design comes from the parallel pre-evaluation";

@@ -24,6 +24,9 @@ struct SimulationRecord {
   std::vector<std::pair<std::string, std::string>> options;  ///< every simulation option
   ValveParameters parameters;
   std::string status;        ///< "converged" or "failed"
+  /// The typed outcome (core/outcome.h: converged, inverted_element, leaflet_crossing, ...);
+  /// empty in files written before it was recorded.
+  std::string outcome;
   std::string reason;        ///< why it failed
   std::vector<std::pair<std::string, double>> summary;  ///< steps, timings, contacts, ...
 

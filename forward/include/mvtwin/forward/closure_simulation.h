@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include "mvtwin/core/outcome.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/valve_sequence.h"
@@ -32,7 +33,8 @@ struct ClosureOptions {
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
-  /// 1 = one linearization per step (the paper's scheme); more = Newton iterations until the
+  /// 1 = one linearization per step (the paper's scheme); more = modified Newton iterations
+  /// (the warped tangent, without the follower pressure's term: ClosureIntegrator) until the
   /// velocity update is below newton_tolerance (mm/s, infinity norm).
   int newton_iterations = 1;
   double newton_tolerance = 1e-6;
@@ -90,12 +92,11 @@ struct ClosureOptions {
   bool is_valid(std::string* error) const;
 };
 
-/// How a simulation ended.
-enum class ClosureStatus { kConverged, kFailed };
-
 struct ClosureSummary {
-  ClosureStatus status = ClosureStatus::kFailed;
-  std::string reason;  ///< why it failed, empty on success
+  /// How the simulation ended (kInvalidInput until it has run).
+  Outcome outcome = Outcome::kInvalidInput;
+  std::string reason;  ///< why it failed, naming the element, node or time; empty on success
+  bool converged() const { return outcome == Outcome::kConverged; }
   int steps = 0;       ///< steps taken (after halvings)
   int halvings = 0;    ///< step retries with a halved step
   int crossings = 0;   ///< steps rejected by continuous collision detection (then halved)

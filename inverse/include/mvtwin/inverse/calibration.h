@@ -1,5 +1,6 @@
 #pragma once
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,8 @@ struct CalibrationResult {
   double noise_mm = 0;
   double error_before_mm = 0, error_after_mm = 0;
   int simulations = 0, failed_simulations = 0, cache_hits = 0;
+  /// Failed candidate simulations by outcome (outcome_name -> count).
+  std::map<std::string, int> failures_by_outcome;
   double wall_s = 0;
   std::vector<HistoryEntry> history;
   ValveParameters parameters;  ///< the fitted set (base plus fitted values)

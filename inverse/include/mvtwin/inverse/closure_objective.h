@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "mvtwin/core/outcome.h"
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/triangle_mesh.h"
 #include "mvtwin/forward/closure_simulation.h"
@@ -28,6 +29,9 @@ struct ObjectiveOptions {
 /// One candidate's evaluation.
 struct Evaluation {
   bool ok = false;
+  /// kConverged when ok; else the simulation's outcome, kNonFiniteState for non-finite
+  /// distances, kInvalidInput for anything else refused (a mvtwin::Error).
+  Outcome outcome = Outcome::kInvalidInput;
   std::string reason;          ///< why it failed
   /// Point-to-mesh distances, mm, in a fixed order: per compared frame, the observed grid
   /// points (annulus row excluded: it is prescribed) to the simulated surface, then the
@@ -58,6 +62,8 @@ class ClosureObjective {
 
   int simulations() const;
   int failed_simulations() const;
+  /// Failed simulations by outcome (outcome_name -> count); empty when none failed.
+  std::map<std::string, int> failures_by_outcome() const;
   int cache_hits() const;
 
   /// The simulated closure at x (not cached), e.g. for the before/after files.
@@ -83,6 +89,7 @@ class ClosureObjective {
   mutable std::mutex mutex_;
   std::map<std::vector<double>, Evaluation> cache_;
   int simulations_ = 0, failed_ = 0, hits_ = 0;
+  std::map<std::string, int> failures_;
 };
 
 }  // namespace mvtwin::inverse

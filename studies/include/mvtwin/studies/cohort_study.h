@@ -4,6 +4,7 @@
 // after, fitted parameters against the truth where there is one), summarized per pathology.
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -100,6 +101,8 @@ struct CohortPatient {
   double error_default_fit_model_mm = 0, error_calibrated_fit_model_mm = 0;
   double calibrate_s = 0;
   int simulations = 0, failed_simulations = 0;
+  /// The failed candidate simulations by typed outcome (outcome_name -> count).
+  std::map<std::string, int> failures_by_outcome;
   std::string termination;  ///< why the optimizer stopped
   /// The noise SD the fit estimates from its residuals, mm (what a good fit's error nears).
   double noise_fit_mm = 0;

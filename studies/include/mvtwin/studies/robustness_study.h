@@ -41,7 +41,10 @@ struct RobustnessCase {
   std::string anatomy;  ///< clean, noisy or degenerate
   double dt = 0, peak_pressure_mmhg = 0;
   std::string outcome;  ///< converged, clean_failure, crash, nonfinite_output
-  std::string reason, failure_kind;
+  std::string reason;
+  /// A clean failure's typed outcome (outcome_name: inverted_element, leaflet_crossing, ...;
+  /// invalid_input for an input refused with mvtwin::Error); empty otherwise.
+  std::string failure_kind;
   double wall_s = 0;
 };
 
@@ -51,9 +54,6 @@ struct RobustnessStudyResult {
   std::string workers;
   double wall_s = 0;
 };
-
-/// The kind of a clean failure, from its reason (inverted element, leaflet crossing, ...).
-std::string failure_kind(const std::string& reason);
 
 /// Runs (or resumes) the study and, on the root, writes OUT/study.json, study.h5, plots and
 /// report.md/.html. Case i is the same whatever process or thread runs it and whether or not

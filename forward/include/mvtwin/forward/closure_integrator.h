@@ -1,0 +1,161 @@
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mvtwin/core/outcome.h"
+#include "mvtwin/forward/closure_scene.h"
+#include "mvtwin/forward/closure_simulation.h"
+#include "mvtwin/forward/elastic_body.h"
+#include "mvtwin/forward/self_contact.h"
+#include "mvtwin/forward/step_solver.h"
+#include "mvtwin/forward/symmetric_block_matrix.h"
+
+namespace mvtwin::forward {
+
+/// Positions (mm) and velocities (mm/s) of every node of the model, 3 per node, flattened.
+struct ValveState {
+  Eigen::VectorXd x, v;
+};
+
+/// How one step (or one linearization) ended; `message` names the element, node or solver.
+struct StepOutcome {
+  Outcome outcome = Outcome::kConverged;
+  std::string message;
+  bool ok() const { return outcome == Outcome::kConverged; }
+};
+
+/// The time integrator of a closure scene: the forces on the valve, the linear system of an
+/// implicit Euler step, a trial step with its checks, and the measurements recorded along the
+/// way. simulate_closure() is a driver over it (the step size, halvings, the clip phase, what to
+/// record); tests use it to check the step system on its own.
+///
+/// One step from (x0, v0) at tau to tau + h solves for the end velocity v1 the residual
+///   r(v1) = M (v1 - v0) - h f(x0 + h v1, v1)
+/// over the free (not prescribed) degrees of freedom, where f holds the elastic forces, Rayleigh
+/// damping (alpha_M M v + alpha_K K v), the chordae and clip springs, leaflet contact with
+/// friction and the ventricular pressure. Each linearization solves A dv = -r with
+///   A = (1 + h alpha_M) M + (h alpha_K + h^2) K + h^2 (K_cables + K_contact) + h C_contact
+/// in which K is the warped co-rotational stiffness R K0 R^T (the paper's, SOFA's), without the
+/// derivative of the rotations; the follower pressure's tangent is left out (it is not
+/// symmetric, and A must be for the Cholesky-preconditioned conjugate gradients); so is the
+/// derivative of alpha_K K with respect to the positions. options.newton_iterations > 1 thus
+/// iterates a modified Newton method: it converges to the implicit Euler step, linearly rather
+/// than quadratically. One linearization per step (the default) is the paper's semi-implicit
+/// scheme.
+class ClosureIntegrator {
+ public:
+  /// `scene` must outlive the integrator. Throws mvtwin::Error for invalid options.
+  ClosureIntegrator(const ClosureScene& scene, const ClosureOptions& options);
+  ClosureIntegrator(const ClosureIntegrator&) = delete;
+  ClosureIntegrator& operator=(const ClosureIntegrator&) = delete;
+
+  const ClosureScene& scene() const { return scene_; }
+  int num_dofs() const { return ndof_; }
+  /// The degrees of freedom that are solved for, in the order of the step system's rows.
+  const std::vector<int>& free_dofs() const { return free_dofs_; }
+  /// Length of the clip phase (simulated time before 0), s; 0 without clips.
+  double clip_phase_s() const { return clip_phase_; }
+
+  /// The model at rest with options.initial_velocity (prescribed nodes at rest). Throws
+  /// mvtwin::Error for an initial velocity of the wrong size or with non-finite values.
+  ValveState initial_state() const;
+
+  /// One implicit Euler step from `state` at tau to tau + h: options.newton_iterations
+  /// linearizations, then the checks of the trial step (finite, no inverted element, no node
+  /// through a leaflet surface). On failure `state` is left unchanged.
+  StepOutcome step(double tau, double h, ValveState* state);
+
+  // The step system, for tests and diagnostics.
+
+  /// The first guess of a step's end velocity: v0 on free nodes, the prescribed nodes' motion
+  /// over the step on the others.
+  Eigen::VectorXd first_guess(const ValveState& start, double tau, double h) const;
+  /// Linearizes the step from `start` at tau to tau + h at end velocity v1 (all dofs): forces,
+  /// rotations, spring tangents, contact pairs, and the residual r(v1).
+  StepOutcome linearize(const ValveState& start, double tau, double h, const Eigen::VectorXd& v1);
+  /// r(v1) over the free dofs at the last linearization.
+  const Eigen::VectorXd& residual() const { return residual_; }
+  /// y = A p over the free dofs at the last linearization (every coupling, contact included).
+  void multiply(const Eigen::VectorXd& p, Eigen::VectorXd* y);
+
+  /// The force terms in the residual and the step matrix. All are on in a simulation; a test
+  /// switches some off to check each term's tangent against finite differences of its force.
+  /// Inertia and Rayleigh mass damping are always on.
+  struct Terms {
+    bool elastic = true;   ///< elastic forces, stiffness-proportional damping
+    bool springs = true;   ///< chordae and clips
+    bool contact = true;   ///< leaflet contact and friction (when options.contact)
+    bool pressure = true;  ///< the ventricular pressure
+  };
+  void set_terms(const Terms& terms) { terms_ = terms; }
+
+  /// The measurements of one recorded instant (simulated time tau).
+  ClosureSample sample(double tau, const ValveState& state) const;
+  /// Per element of the corner mesh at positions x: the largest principal co-rotational strain
+  /// and the von Mises stress of the scene's leaflet material's response to it, MPa.
+  void strain_and_stress(const Eigen::VectorXd& x, Eigen::VectorXd* strain,
+                         Eigen::VectorXd* stress_mpa) const;
+  /// Distance between the two sites of clip c (0-based) at positions x, mm.
+  double clip_gap(int c, const Eigen::VectorXd& x) const;
+  int num_clips() const { return static_cast<int>(cables_.size()) - first_spring_; }
+
+  /// Work counters so far (steps and halvings are the driver's): crossings, Newton iterations,
+  /// time per part, contact and linear-solver statistics. Interpenetration is measured by
+  /// finish().
+  const ClosureSummary& counters() const { return counters_; }
+  /// Fills `result`'s summary with the counters, its end positions' strain, stress and
+  /// interpenetration, and the rest mesh.
+  void finish(ClosureResult* result) const;
+
+ private:
+  // A two-point force element: a chorda (to a papillary tip) or a clip spring (between two
+  // cross-sections); each end is the mean of a node set or a prescribed point.
+  struct Cable {
+    std::vector<int> a, b;  // node sets; b empty: the far end is papillary tip `tip`
+    int tip = -1;
+    double rest = 0.0;
+    const ChordaLaw* law = nullptr;  // null: linear spring of stiffness k
+    double k = 0.0;
+  };
+  double cable_rest(size_t c, double tau) const;
+  Eigen::Vector3d mean_of(const std::vector<int>& nodes, const Eigen::VectorXd& at) const;
+  const Eigen::SparseMatrix<double>& assemble_lower();
+  void rotate(Eigen::VectorXd* v, bool transpose);
+  void update_node_rotation();
+  StepOutcome check_trial(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1);
+
+  const ClosureScene& scene_;
+  ClosureOptions options_;
+  Terms terms_;
+  ElasticBody body_;
+  int n_ = 0, ndof_ = 0;
+  std::vector<Cable> cables_;
+  int first_spring_ = 0;
+  std::vector<char> fixed_;
+  std::vector<int> free_dofs_;
+  Eigen::VectorXd rest_, mass_, mass_dof_;
+  std::optional<SelfContact> contact_;
+  AtrialSampler sampler_;
+  std::optional<SymmetricBlockMatrix> system_;
+  int first_cable_clique_ = 0;
+  StepSolver linear_;
+  double clip_phase_ = 0.0;
+  std::vector<double> spring_start_;
+
+  // The last linearization.
+  double h_ = 0.0, ck_ = 0.0, cm_ = 0.0;
+  ElementRotations rot_, rot_at_factor_;
+  std::vector<Eigen::Matrix3d> cable_tangent_;
+  // Rotation of each node's neighbourhood since the last factorization (the rotated
+  // preconditioner, StepSolver::System::rotate), computed when first needed.
+  std::vector<Eigen::Matrix3d> node_rotation_;
+  bool node_rotation_current_ = false;
+  Eigen::VectorXd residual_, p_all_, y_all_;
+
+  ClosureSummary counters_;
+};
+
+}  // namespace mvtwin::forward

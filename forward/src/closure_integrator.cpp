@@ -1,0 +1,458 @@
+#include "mvtwin/forward/closure_integrator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/closure_measures.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/forward/chorda.h"
+#include "mvtwin/forward/interpenetration.h"
+
+namespace mvtwin::forward {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+StepOutcome failed(Outcome o, std::string message) { return {o, std::move(message)}; }
+
+SelfContact::Options contact_options(const ClosureOptions& opt, double peak_pressure_mpa) {
+  SelfContact::Options co;
+  co.alarm_mm = opt.contact_alarm_mm;
+  co.contact_mm = opt.contact_distance_mm;
+  co.friction = opt.contact_friction;
+  co.wall_factor = opt.contact_wall_factor;
+  co.max_depth_mm = 0.5 * std::min(opt.model.al_thickness_mm, opt.model.pl_thickness_mm);
+  co.stiffness_per_area = opt.contact_stiffness_factor *
+                          std::max(peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
+                          (opt.contact_alarm_mm - opt.contact_distance_mm);
+  return co;
+}
+
+StepSolver::Options solver_options(const ClosureOptions& opt) {
+  return {opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations, opt.refactor_iterations,
+          opt.single_precision_preconditioner};
+}
+
+}  // namespace
+
+ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOptions& options)
+    : scene_(scene),
+      options_(options),
+      body_(scene.model.mesh,
+            [&scene](int tag) {
+              return scene.leaflet_material[tag == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1];
+            }),
+      linear_(solver_options(options)) {
+  std::string why;
+  if (!options_.is_valid(&why)) throw Error("closure options: " + why);
+  const SolidMesh& mesh = scene_.model.mesh;
+  body_.set_inversion_guard(options_.inversion_guard);
+  n_ = mesh.num_nodes();
+  ndof_ = 3 * n_;
+
+  for (const SceneChorda& c : scene_.chordae)
+    cables_.push_back({c.nodes, {}, c.tip, c.rest_length, &c.law, 0.0});
+  first_spring_ = static_cast<int>(cables_.size());
+  for (const SceneSpring& sp : scene_.springs)
+    cables_.push_back({sp.a, sp.b, -1, sp.rest_length, nullptr, sp.stiffness});
+  cable_tangent_.resize(cables_.size());
+
+  fixed_.assign(ndof_, 0);
+  std::vector<char> node_free(n_, 1);
+  for (const PrescribedNode& pr : scene_.prescribed) {
+    fixed_[3 * pr.node] = fixed_[3 * pr.node + 1] = fixed_[3 * pr.node + 2] = 1;
+    node_free[pr.node] = 0;
+  }
+  for (int i = 0; i < ndof_; ++i) {
+    if (!fixed_[i]) free_dofs_.push_back(i);
+  }
+  rest_ = body_.rest_positions();
+  mass_ = body_.lumped_mass(options_.density);
+  mass_dof_.resize(ndof_);
+  for (int i = 0; i < ndof_; ++i) mass_dof_[i] = mass_[i / 3];
+  counters_.dofs = static_cast<int>(free_dofs_.size());
+  counters_.elements = mesh.num_elements();
+
+  if (options_.contact)
+    contact_.emplace(SelfContact::valve_surface(scene_.model),
+                     contact_options(options_, scene_.peak_pressure_mpa));
+  sampler_ = make_atrial_sampler(scene_.model, options_.model.ures, options_.model.vres);
+
+  // The step matrix on a fixed pattern: every element, and each cable's end nodes.
+  std::vector<std::vector<int>> cliques = body_.element_cliques();
+  first_cable_clique_ = static_cast<int>(cliques.size());
+  for (const Cable& cb : cables_) {
+    std::vector<int> c = cb.a;
+    c.insert(c.end(), cb.b.begin(), cb.b.end());
+    cliques.push_back(c);
+  }
+  system_.emplace(node_free, cliques);
+  if (system_->rows() != static_cast<int>(free_dofs_.size()))
+    throw Error("closure simulation: internal error (free dofs and system rows differ)");
+  node_rotation_.resize(n_);
+  p_all_ = Eigen::VectorXd::Zero(ndof_);
+  y_all_.resize(ndof_);
+
+  // Clip phase (Mansi et al. 2012, Sec. 2.4), simulated time [-clip_closing_s, 0): pressure
+  // off, annulus and papillary tips held at end-diastole, each clip's rest length closing
+  // smoothly from the sites' distance at rest to its target.
+  clip_phase_ = scene_.springs.empty() ? 0.0 : options_.clip_closing_s;
+  spring_start_.assign(cables_.size(), 0.0);
+  for (size_t c = first_spring_; c < cables_.size(); ++c)
+    spring_start_[c] = (mean_of(cables_[c].a, rest_) - mean_of(cables_[c].b, rest_)).norm();
+}
+
+Eigen::Vector3d ClosureIntegrator::mean_of(const std::vector<int>& nodes,
+                                           const Eigen::VectorXd& at) const {
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  for (int k : nodes) m += at.segment<3>(3 * k);
+  return m / static_cast<double>(nodes.size());
+}
+
+double ClosureIntegrator::cable_rest(size_t c, double tau) const {
+  if (static_cast<int>(c) < first_spring_ || tau >= 0.0) return cables_[c].rest;
+  const double q = 1.0 - std::min(1.0, -tau / clip_phase_);  // 0 at the phase's start
+  const double w = q * q * (3.0 - 2.0 * q);
+  return std::max(cables_[c].rest, (1.0 - w) * spring_start_[c] + w * cables_[c].rest);
+}
+
+ValveState ClosureIntegrator::initial_state() const {
+  ValveState s{rest_, Eigen::VectorXd::Zero(ndof_)};
+  if (options_.initial_velocity.size() > 0) {
+    if (options_.initial_velocity.size() != ndof_ || !options_.initial_velocity.allFinite()) {
+      throw Error("closure options: initial_velocity needs " + std::to_string(ndof_) +
+                  " finite values (3 per node)");
+    }
+    s.v = options_.initial_velocity;
+    for (int i = 0; i < ndof_; ++i) {
+      if (fixed_[i]) s.v[i] = 0.0;
+    }
+  }
+  return s;
+}
+
+Eigen::VectorXd ClosureIntegrator::first_guess(const ValveState& start, double tau,
+                                               double h) const {
+  const double scene_time = std::max(tau + h, 0.0);  // the clip phase holds end-diastole
+  Eigen::VectorXd xp1 = start.x;
+  scene_.prescribed_positions(scene_time, &xp1);
+  Eigen::VectorXd v1 = start.v;
+  for (const PrescribedNode& pr : scene_.prescribed)
+    v1.segment<3>(3 * pr.node) = (xp1 - start.x).segment<3>(3 * pr.node) / h;
+  return v1;
+}
+
+StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, double h,
+                                         const Eigen::VectorXd& v1) {
+  const auto ta = Clock::now();
+  const double contact_before = counters_.contact_s;
+  const double tau1 = tau + h;
+  const double scene_time = std::max(tau1, 0.0);
+  h_ = h;
+  ck_ = h * options_.rayleigh_stiffness + h * h;  // K's factor in the step matrix
+  cm_ = 1.0 + h * options_.rayleigh_mass;         // M's factor
+  const Eigen::VectorXd x1 = start.x + h * v1;
+
+  // Elastic forces and K v1 (for the stiffness-proportional damping) in one pass.
+  Eigen::VectorXd f = -options_.rayleigh_mass * mass_dof_.cwiseProduct(v1);
+  if (terms_.elastic) {
+    Eigen::VectorXd g, Kv;
+    const int bad = body_.gradient(x1, &g, &rot_, nullptr, &v1, &Kv);
+    node_rotation_current_ = false;
+    if (bad >= 0)
+      return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
+    f = -g - options_.rayleigh_mass * mass_dof_.cwiseProduct(v1) - options_.rayleigh_stiffness * Kv;
+  }
+  if (terms_.springs) {
+    const Eigen::Vector3d tips[2] = {scene_.papillary_tip(0, scene_time),
+                                     scene_.papillary_tip(1, scene_time)};
+    for (size_t c = 0; c < cables_.size(); ++c) {
+      const Cable& cb = cables_[c];
+      Eigen::Matrix<double, 6, 1> gc;
+      Eigen::Matrix<double, 6, 6> Hc;
+      const double rest = cable_rest(c, tau1);
+      // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
+      const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
+      const Eigen::Vector3d end = cb.b.empty() ? tips[cb.tip] : mean_of(cb.b, x1);
+      chorda_gradient(law, rest, mean_of(cb.a, x1), end, &gc, &Hc);
+      for (int k : cb.a) f.segment<3>(3 * k) -= gc.head<3>() / static_cast<double>(cb.a.size());
+      for (int k : cb.b) f.segment<3>(3 * k) -= gc.tail<3>() / static_cast<double>(cb.b.size());
+      cable_tangent_[c] = Hc.topLeftCorner<3, 3>();
+    }
+  }
+  if (contact_ && terms_.contact) {
+    const auto tc = Clock::now();
+    const int found = contact_->detect(x1);
+    counters_.contacts = found;
+    counters_.max_contacts = std::max(counters_.max_contacts, found);
+    contact_->add_forces(v1, &f);
+    counters_.contact_s += seconds_since(tc);
+  }
+  if (terms_.pressure) {
+    const double p = tau1 < 0.0 ? 0.0 : scene_.pressure(tau1);
+    for (const PressureFace& pf : scene_.pressure_faces) {
+      const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b),
+                            c = x1.segment<3>(3 * pf.c);
+      const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
+      for (int k = 0; k < 3; ++k) f.segment<3>(3 * pf.load[k]) += force;
+    }
+  }
+  residual_.resize(static_cast<Eigen::Index>(free_dofs_.size()));
+  for (size_t i = 0; i < free_dofs_.size(); ++i) {
+    const int d = free_dofs_[i];
+    residual_[static_cast<Eigen::Index>(i)] = mass_[d / 3] * (v1[d] - start.v[d]) - h * f[d];
+  }
+  counters_.assembly_s += seconds_since(ta) - (counters_.contact_s - contact_before);
+  return {};
+}
+
+void ClosureIntegrator::multiply(const Eigen::VectorXd& pf, Eigen::VectorXd* y) {
+  const double h = h_;
+  for (size_t i = 0; i < free_dofs_.size(); ++i)
+    p_all_[free_dofs_[i]] = pf[static_cast<Eigen::Index>(i)];
+  y_all_.setZero();
+  if (terms_.elastic) {
+    body_.tangent_times(rot_, p_all_, &y_all_);
+    y_all_ *= ck_;
+  }
+  if (terms_.springs) {
+    for (size_t c = 0; c < cables_.size(); ++c) {
+      const Cable& cb = cables_[c];
+      Eigen::Vector3d d = mean_of(cb.a, p_all_);
+      if (!cb.b.empty()) d -= mean_of(cb.b, p_all_);
+      const Eigen::Vector3d t = h * h * (cable_tangent_[c] * d);
+      for (int k : cb.a) y_all_.segment<3>(3 * k) += t / static_cast<double>(cb.a.size());
+      for (int k : cb.b) y_all_.segment<3>(3 * k) -= t / static_cast<double>(cb.b.size());
+    }
+  }
+  if (contact_ && terms_.contact) contact_->multiply(p_all_, h * h, h, &y_all_);
+  y->resize(pf.size());
+  for (size_t i = 0; i < free_dofs_.size(); ++i) {
+    const int d = free_dofs_[i];
+    (*y)[static_cast<Eigen::Index>(i)] = y_all_[d] + cm_ * mass_dof_[d] * p_all_[d];
+  }
+}
+
+// The factorized matrix: A without the contact couplings (their diagonal blocks only),
+// assembled only when the solver factorizes.
+const Eigen::SparseMatrix<double>& ClosureIntegrator::assemble_lower() {
+  const auto t0 = Clock::now();
+  const double h = h_;
+  SymmetricBlockMatrix& system = *system_;
+  system.set_zero();
+  if (terms_.elastic) body_.assemble_tangent(rot_, ck_, &system);
+  if (terms_.springs) {
+    for (size_t c = 0; c < cables_.size(); ++c) {
+      const Cable& cb = cables_[c];
+      const int ma = static_cast<int>(cb.a.size()), m = ma + static_cast<int>(cb.b.size());
+      Eigen::MatrixXd K(3 * m, 3 * m);
+      for (int i = 0; i < m; ++i) {
+        const double wi = i < ma ? 1.0 / ma : -1.0 / (m - ma);
+        for (int j = 0; j < m; ++j) {
+          const double wj = j < ma ? 1.0 / ma : -1.0 / (m - ma);
+          K.block<3, 3>(3 * i, 3 * j) = wi * wj * cable_tangent_[c];
+        }
+      }
+      system.add_clique(first_cable_clique_ + static_cast<int>(c), K, h * h);
+    }
+  }
+  if (contact_ && terms_.contact) contact_->add_diagonal_blocks(h * h, h, &system);
+  system.add_diagonal(cm_ * mass_);
+  rot_at_factor_ = rot_;
+  node_rotation_current_ = false;
+  counters_.matrix_assembly_s += seconds_since(t0);
+  return system.lower();
+}
+
+void ClosureIntegrator::update_node_rotation() {
+  const SolidMesh& mesh = scene_.model.mesh;
+  for (auto& Q : node_rotation_) Q.setZero();
+  const int npe = mesh.nodes_per_element();
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const Eigen::Matrix3d D = rot_.R[e] * rot_at_factor_.R[e].transpose();
+    for (int a = 0; a < npe; ++a) node_rotation_[mesh.T(e, a)] += D;
+  }
+  for (auto& Q : node_rotation_) {
+    Eigen::Matrix3d R, S;
+    Q = polar_decomposition(Q, &R, &S) ? R : Eigen::Matrix3d::Identity();
+  }
+  node_rotation_current_ = true;
+}
+
+void ClosureIntegrator::rotate(Eigen::VectorXd* vf, bool transpose) {
+  if (!node_rotation_current_) update_node_rotation();
+  for (int i = 0; i < n_; ++i) {
+    const int f0 = system_->first_row(i);
+    if (f0 < 0) continue;
+    const Eigen::Vector3d a = vf->segment<3>(f0);
+    vf->segment<3>(f0) = transpose ? Eigen::Vector3d(node_rotation_[i].transpose() * a)
+                                   : Eigen::Vector3d(node_rotation_[i] * a);
+  }
+}
+
+StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
+  Eigen::VectorXd v1 = first_guess(*state, tau, h);
+  StepSolver::System A{[this](const Eigen::VectorXd& p, Eigen::VectorXd* y) { multiply(p, y); },
+                       [this]() -> const Eigen::SparseMatrix<double>& { return assemble_lower(); },
+                       nullptr};
+  if (options_.rotated_preconditioner && terms_.elastic)
+    A.rotate = [this](Eigen::VectorXd* v, bool transpose) { rotate(v, transpose); };
+
+  for (int it = 0; it < options_.newton_iterations; ++it) {
+    if (StepOutcome o = linearize(*state, tau, h, v1); !o.ok()) return o;
+    const auto ts = Clock::now();
+    const double matrix_before = counters_.matrix_assembly_s;
+    Eigen::VectorXd dv;
+    std::string why;
+    const bool solved = linear_.solve(A, -residual_, &dv, &why);
+    const double matrix_s = counters_.matrix_assembly_s - matrix_before;
+    counters_.solve_s += seconds_since(ts) - matrix_s;
+    counters_.assembly_s += matrix_s;
+    if (!solved) return failed(Outcome::kLinearSolver, why);
+    for (size_t i = 0; i < free_dofs_.size(); ++i)
+      v1[free_dofs_[i]] += dv[static_cast<Eigen::Index>(i)];
+    ++counters_.newton_iterations;
+    counters_.final_update_norm = dv.lpNorm<Eigen::Infinity>();
+    if (counters_.final_update_norm < options_.newton_tolerance) break;
+  }
+  const Eigen::VectorXd x1 = state->x + h * v1;
+  if (StepOutcome o = check_trial(state->x, x1); !o.ok()) return o;
+  state->x = x1;
+  state->v = v1;
+  return {};
+}
+
+// The linearization point was checked when it was linearized; the step's end must be valid
+// too, or the next step would start from an inverted element that no smaller step can mend.
+StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) {
+  if (!x1.allFinite()) return failed(Outcome::kNonFiniteState, "non-finite positions");
+  if (const int bad = body_.first_inverted(x1); bad >= 0)
+    return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
+  if (contact_ && options_.contact_ccd) {
+    const auto tc = Clock::now();
+    const int crossing = contact_->find_crossing(x0, x1);
+    counters_.contact_s += seconds_since(tc);
+    if (crossing >= 0) {
+      ++counters_.crossings;
+      return failed(Outcome::kLeafletCrossing,
+                    "node " + std::to_string(crossing) + " would pass through a leaflet surface");
+    }
+  }
+  return {};
+}
+
+ClosureSample ClosureIntegrator::sample(double tau, const ValveState& state) const {
+  const int U = options_.model.ures;
+  ClosureSample s;
+  s.kinetic_energy = 0.5 * state.v.dot(mass_dof_.cwiseProduct(state.v));
+  {
+    Eigen::VectorXd g;
+    ElementRotations r;
+    double e = 0.0;
+    s.elastic_energy =
+        body_.gradient(state.x, &g, &r, &e) < 0 ? e : std::numeric_limits<double>::quiet_NaN();
+  }
+  s.time_s = tau;
+  s.observed_time_s = scene_.observed_time(std::max(tau, 0.0));
+  s.la_surface = sample_atrial(sampler_, state.x);
+  ValveFrame fr;
+  fr.annulus = s.la_surface.points().topRows(U);
+  for (int l = 0; l < kNumLandmarks; ++l) {
+    const Landmark lm = static_cast<Landmark>(l);
+    fr.landmark_observed[l] =
+        l <= index(Landmark::kPosteromedialCommissure) && scene_.observed_at_end_diastole(lm);
+    fr.landmarks[l] = fr.landmark_observed[l]
+                          ? scene_.landmark(lm, std::max(tau, 0.0))
+                          : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
+  fr.la_surface = s.la_surface;
+  const TipToAnnulusPlane t = tip_to_annulus_plane(fr);
+  s.anterior_tip_mm = t.anterior_mm;
+  s.posterior_tip_mm = t.posterior_mm;
+  if (contact_) s.min_contact_distance_mm = contact_->min_distance();
+  if (s.la_surface.points().allFinite()) {
+    const ClosureMeasures cm = measure_closure(fr.annulus, s.la_surface.triangulate(), 0.25);
+    s.orifice_area_mm2 = cm.orifice_area_mm2;
+    s.annulus_area_mm2 = cm.annulus_area_mm2;
+    s.orifice_components = cm.orifice_components;
+  }
+  return s;
+}
+
+void ClosureIntegrator::strain_and_stress(const Eigen::VectorXd& x, Eigen::VectorXd* strain,
+                                          Eigen::VectorXd* stress_mpa) const {
+  const TetMesh& linear = scene_.model.linear;
+  const Eigen::Index E = linear.T.rows();
+  strain->resize(E);
+  stress_mpa->resize(E);
+  for (Eigen::Index e = 0; e < E; ++e) {
+    Eigen::Matrix3d Dm, Ds;
+    for (int k = 0; k < 3; ++k) {
+      Dm.col(k) = (linear.V.row(linear.T(e, k + 1)) - linear.V.row(linear.T(e, 0))).transpose();
+      Ds.col(k) = x.segment<3>(3 * linear.T(e, k + 1)) - x.segment<3>(3 * linear.T(e, 0));
+    }
+    const Eigen::Matrix3d F = Ds * Dm.inverse();
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    // Co-rotational strain: S - I with F = R S (S = V Sigma V^T).
+    const Eigen::Matrix3d eps =
+        svd.matrixV() * (svd.singularValues().asDiagonal()) * svd.matrixV().transpose() -
+        Eigen::Matrix3d::Identity();
+    (*strain)[e] = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(eps).eigenvalues().maxCoeff();
+    Eigen::Matrix<double, 6, 1> ev;
+    ev << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(1, 2), 2 * eps(0, 2), 2 * eps(0, 1);
+    const TransverselyIsotropic& mat =
+        scene_.leaflet_material[linear.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1];
+    const Eigen::Matrix<double, 6, 1> sv = mat.stiffness(linear.fibre.row(e).transpose()) * ev;
+    (*stress_mpa)[e] =
+        std::sqrt(0.5 * ((sv[0] - sv[1]) * (sv[0] - sv[1]) + (sv[1] - sv[2]) * (sv[1] - sv[2]) +
+                         (sv[2] - sv[0]) * (sv[2] - sv[0])) +
+                  3.0 * (sv[3] * sv[3] + sv[4] * sv[4] + sv[5] * sv[5]));
+  }
+}
+
+double ClosureIntegrator::clip_gap(int c, const Eigen::VectorXd& x) const {
+  const Cable& cb = cables_.at(static_cast<size_t>(first_spring_ + c));
+  return (x.segment<3>(3 * cb.a.front()) - x.segment<3>(3 * cb.b.front())).norm();
+}
+
+void ClosureIntegrator::finish(ClosureResult* result) const {
+  ClosureSummary& sum = result->summary;
+  const Outcome outcome = sum.outcome;
+  const std::string reason = sum.reason;
+  const int steps = sum.steps, halvings = sum.halvings;
+  sum = counters_;
+  sum.outcome = outcome;
+  sum.reason = reason;
+  sum.steps = steps;
+  sum.halvings = halvings;
+  result->rest_mesh = scene_.model.linear;
+  strain_and_stress(result->positions, &result->element_strain, &result->element_stress_mpa);
+  const Interpenetration ip = find_interpenetration(scene_.model, result->positions);
+  sum.interpenetrating_nodes = static_cast<int>(ip.nodes.size());
+  sum.interpenetration_checked = ip.checked;
+  sum.guarded_elements = static_cast<int>(rot_.guards.size());
+  const StepSolver::Stats& ls = linear_.stats();
+  sum.pcg_fallbacks = ls.pcg_fallbacks;
+  sum.unconverged_solves = ls.unconverged;
+  sum.factorize_s = ls.factorize_s;
+  sum.analyses = ls.analyses;
+  sum.factorizations = ls.factorizations;
+  sum.pcg_iterations = ls.pcg_iterations;
+  if (contact_) {
+    sum.contact_searches = contact_->searches();
+    sum.contact_reused = contact_->reused();
+    sum.min_contact_distance_mm = contact_->min_distance();
+  }
+}
+
+}  // namespace mvtwin::forward
