@@ -9,12 +9,11 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "output_files.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
@@ -23,6 +22,7 @@
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/inverse/calibration.h"
+#include "output_files.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -58,12 +58,14 @@ json calibration_json(const CalibrationRecord& c) {
   json corr = json::array();
   for (Eigen::Index i = 0; i < c.correlation.rows(); ++i) {
     json row = json::array();
-    for (Eigen::Index j = 0; j < c.correlation.cols(); ++j) row.push_back(nan_to_null(c.correlation(i, j)));
+    for (Eigen::Index j = 0; j < c.correlation.cols(); ++j)
+      row.push_back(nan_to_null(c.correlation(i, j)));
     corr.push_back(row);
   }
   json history = json::array();
   for (size_t h = 0; h < c.history_simulation.size(); ++h)
-    history.push_back({c.history_simulation[h], nan_to_null(c.history_error_mm[h]), c.history_best_mm[h]});
+    history.push_back(
+        {c.history_simulation[h], nan_to_null(c.history_error_mm[h]), c.history_best_mm[h]});
   json opts = json::object();
   for (const auto& [k, v] : c.options) opts[k] = v;
   return {{"patient_id", c.patient_id},
@@ -119,17 +121,21 @@ void print_calibration(const CalibrationRecord& c, std::ostream& os) {
 }
 
 void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
-  cmd->add_option("--jobs", co->jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
-  cmd->add_option("--max-sims", co->max_simulations,
-                  "simulation budget (start, scan and optimizer; the uncertainty adds one per parameter)")
+  cmd->add_option("--jobs", co->jobs, "simulations at once")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
+  cmd->add_option(
+         "--max-sims", co->max_simulations,
+         "simulation budget (start, scan and optimizer; the uncertainty adds one per parameter)")
       ->default_val(co->max_simulations)
       ->check(CLI::Range(1, 100000));
   cmd->add_option("--scan", co->restlength_scan,
                   "common rest-length offsets simulated before the optimizer starts")
       ->delimiter(',')
       ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
-  cmd->add_flag_callback("--no-scan", [co] { co->restlength_scan.clear(); },
-                         "start the optimizer at the defaults, without the scan");
+  cmd->add_flag_callback(
+      "--no-scan", [co] { co->restlength_scan.clear(); },
+      "start the optimizer at the defaults, without the scan");
 }
 
 void register_calibrate(CLI::App& app, Context& ctx) {
@@ -150,15 +156,15 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   auto co = std::make_shared<inverse::CalibrationOptions>();
   auto sets = std::make_shared<std::vector<std::string>>();
   auto use_detected = std::make_shared<bool>(false);
-  cmd->add_flag("--use-detected", *use_detected,
-                "use the sequence detected from the images (mvtwin detect) instead of the stored one");
+  cmd->add_flag(
+      "--use-detected", *use_detected,
+      "use the sequence detected from the images (mvtwin detect) instead of the stored one");
   cmd->add_option("FILE", *file, "patient file with an observed closed valve")->required();
   cmd->add_option("--out", *out, "calibration file (HDF5); a .json summary is written beside it")
       ->required();
   cmd->add_flag("--force", *force, "replace an existing calibration file");
   cmd->add_option("--fit", *fit, "what to fit")->default_val("restlength,stiffness,pressure");
-  cmd->add_option("--method", co->method, "bobyqa | cobyla | neldermead | sbplx | ceres")
-      ->default_val("bobyqa");
+  add_method_option(cmd, &co->method);
   cmd->add_option("--noise-mm", co->noise_mm,
                   "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
   cmd->add_flag("--all-frames", *all_frames,
@@ -179,15 +185,15 @@ void register_calibrate(CLI::App& app, Context& ctx) {
       oo.all_closing_frames = *all_frames;
       inverse::ClosureObjective objective(p, inverse::ParameterSpace(*fit, start), oo);
       std::cout << "calibrating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
-                << objective.space().names() << "\n  by " << co->method << ", " << co->jobs
-                << " simulations at once, model " << o.model.ures << " x " << o.model.vres
-                << ", dt " << o.dt << " s; " << objective.num_residuals()
+                << objective.space().names() << "\n  by " << inverse::fit_method_name(co->method)
+                << ", " << co->jobs << " simulations at once, model " << o.model.ures << " x "
+                << o.model.vres << ", dt " << o.dt << " s; " << objective.num_residuals()
                 << " distances over " << objective.frames().size() << " frame(s)" << std::endl;
       inverse::CalibrationOptions opt = *co;
       const bool tty = isatty(fileno(stderr)) != 0;
       opt.progress = [tty](int it, double best, int sims) {
-        std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s", tty ? "\r" : "",
-                     it, best, sims, tty ? "   " : "\n");
+        std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s",
+                     tty ? "\r" : "", it, best, sims, tty ? "   " : "\n");
         std::fflush(stderr);
       };
       const inverse::CalibrationResult r = inverse::calibrate(objective, opt);
@@ -219,7 +225,8 @@ void register_calibrate(CLI::App& app, Context& ctx) {
             const inverse::Evaluation b = against.evaluate(r.start), a = against.evaluate(r.fitted);
             if (a.ok && b.ok) {
               std::printf("  against the stored valve%s: %.3f -> %.3f mm\n",
-                          p.synthetic ? " (the virtual patient's truth)" : "", b.mean_mm, a.mean_mm);
+                          p.synthetic ? " (the virtual patient's truth)" : "", b.mean_mm,
+                          a.mean_mm);
               summary["stored_valve_error_before_mm"] = b.mean_mm;
               summary["stored_valve_error_after_mm"] = a.mean_mm;
             }
@@ -239,6 +246,26 @@ void register_calibrate(CLI::App& app, Context& ctx) {
       return 0;
     };
   });
+}
+
+CLI::Option* add_method_option(CLI::App* cmd, inverse::FitMethod* method) {
+  std::string names;
+  for (const auto& [name, m] : inverse::fit_methods_by_name())
+    names += (names.empty() ? "" : " | ") + name;
+  return cmd
+      ->add_option_function<std::string>(
+          "--method",
+          [method](const std::string& name) { *method = *inverse::parse_fit_method(name); },
+          "optimizer: " + names)
+      ->check(CLI::Validator(
+          [names](std::string& name) {
+            return inverse::parse_fit_method(name)
+                       ? std::string()
+                       : "unknown method '" + name + "' (" + names + ")";
+          },
+          ""))
+      ->type_name("METHOD")
+      ->default_str(inverse::fit_method_name(*method));
 }
 
 }  // namespace mvtwin::tools

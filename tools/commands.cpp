@@ -15,23 +15,23 @@
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/image_io.h"
+#include "mvtwin/core/markups.h"
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/patient_vtk.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
-#include "mvtwin/core/image_io.h"
-#include "mvtwin/core/markups.h"
-#include "mvtwin/detection/label_map.h"
+#include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
-#include "mvtwin/core/simulation_file.h"
+#include "mvtwin/detection/label_map.h"
 #include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/closure_simulation.h"
-#include "mvtwin/forward/virtual_closure.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/forward/valve_model.h"
+#include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -55,7 +55,8 @@ void refuse_overwrite(const fs::path& p, bool force) {
 void print_assumed(const Patient& p, std::ostream& os) {
   const std::string a = p.sequence.assumed_landmarks();
   if (!a.empty())
-    os << "ASSUMED   " << a << ": estimated from published anatomy, not observed (they drive the closure)\n";
+    os << "ASSUMED   " << a
+       << ": estimated from published anatomy, not observed (they drive the closure)\n";
 }
 
 std::string fmt(double v, int prec = 2) {
@@ -196,7 +197,9 @@ Patient read_patient_for_run(const fs::path& path, bool use_detected) {
     if (!p.detected)
       throw Error(path.string() + " has no detected sequence (run mvtwin detect first)");
     p.sequence = *p.detected;
-    p.provenance.source.append("; sequence detected from images (").append(p.detected_by).append(")");
+    p.provenance.source.append("; sequence detected from images (")
+        .append(p.detected_by)
+        .append(")");
   }
   print_assumed(p, std::cout);
   return p;
@@ -367,13 +370,16 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- export ----------------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand("export", "Export a patient file to VTK for ParaView, or as label maps");
+    auto* cmd =
+        app.add_subcommand("export", "Export a patient file to VTK for ParaView, or as label maps");
     cmd->footer(
         "Examples:\n  mvtwin export patient.h5 --vtk vtk/\n  paraview vtk/la_surface.pvd "
         "vtk/annulus.pvd vtk/landmarks.pvd\n"
         "  mvtwin export patient.h5 --labelmap seg/ --convention mvseg --voxel 0.8\n"
-        "--labelmap writes each frame with a leaflet surface (or --frames I,J) as a NIfTI label map\n"
-        "(leaflets extruded by their thickness, partial-volume boundary noise --boundary-noise, seeded\n"
+        "--labelmap writes each frame with a leaflet surface (or --frames I,J) as a NIfTI label "
+        "map\n"
+        "(leaflets extruded by their thickness, partial-volume boundary noise --boundary-noise, "
+        "seeded\n"
         "by --seed) and its papillary tips as a 3D Slicer markups file, ready for mvtwin import.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
@@ -385,18 +391,26 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto as_sequence = std::make_shared<bool>(false);
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--vtk", *dir, "output directory for VTK");
-    cmd->add_flag("--sequence", *as_sequence, "with --labelmap: one 3D+t file, labels.seq.nrrd (3D Slicer's sequence)");
+    cmd->add_flag("--sequence", *as_sequence,
+                  "with --labelmap: one 3D+t file, labels.seq.nrrd (3D Slicer's sequence)");
     cmd->add_option("--labelmap", *labeldir, "output directory for label maps and markups");
-    cmd->add_option("--convention", *convention, "with --labelmap: mvtool or mvseg")->default_val("mvtool");
-    cmd->add_option("--voxel", lo->voxel_mm, "with --labelmap: voxel size, mm")->default_val(lo->voxel_mm);
-    cmd->add_option("--boundary-noise", lo->boundary_noise, "with --labelmap: partial-volume noise SD")
+    cmd->add_option("--convention", *convention, "with --labelmap: mvtool or mvseg")
+        ->default_val("mvtool");
+    cmd->add_option("--voxel", lo->voxel_mm, "with --labelmap: voxel size, mm")
+        ->default_val(lo->voxel_mm);
+    cmd->add_option("--boundary-noise", lo->boundary_noise,
+                    "with --labelmap: partial-volume noise SD")
         ->default_val(lo->boundary_noise);
-    cmd->add_option("--seed", lo->seed, "with --labelmap: seed of the boundary noise")->default_val(lo->seed);
-    cmd->add_option("--frames", *frames, "with --labelmap: frame indices (default: every frame with leaflets)")->delimiter(',');
+    cmd->add_option("--seed", lo->seed, "with --labelmap: seed of the boundary noise")
+        ->default_val(lo->seed);
+    cmd->add_option("--frames", *frames,
+                    "with --labelmap: frame indices (default: every frame with leaflets)")
+        ->delimiter(',');
     cmd->add_flag("--force", *force, "write into a directory that already has output files");
     cmd->callback([=, &ctx] {
       ctx.run = [=] {
-        if (dir->empty() && labeldir->empty()) throw Error("export: give --vtk DIR and/or --labelmap DIR");
+        if (dir->empty() && labeldir->empty())
+          throw Error("export: give --vtk DIR and/or --labelmap DIR");
         const Patient p = read_patient(*file, false);
         if (!dir->empty()) {
           refuse_overwrite(fs::path(*dir) / "la_surface.pvd", *force);
@@ -415,13 +429,16 @@ void register_commands(CLI::App& app, Context& ctx) {
           fs::create_directories(*labeldir);
           std::string cmdline = "mvtwin import";
           for (int f : which) {
-            if (f < 0 || f >= p.sequence.num_frames()) throw Error("--frames: no frame " + std::to_string(f));
-            if (!p.sequence.frames[f].la_surface) throw Error(*file + ": frame " + std::to_string(f) + " has no leaflet surface");
+            if (f < 0 || f >= p.sequence.num_frames())
+              throw Error("--frames: no frame " + std::to_string(f));
+            if (!p.sequence.frames[f].la_surface)
+              throw Error(*file + ": frame " + std::to_string(f) + " has no leaflet surface");
           }
           std::vector<ImageVolume> series;
           if (*as_sequence) {
             std::vector<ImageVolume> boxes;
-            for (int f : which) boxes.push_back(detection::label_map_geometry(p.sequence.frames[f], o));
+            for (int f : which)
+              boxes.push_back(detection::label_map_geometry(p.sequence.frames[f], o));
             o.geometry = detection::union_geometry(boxes);
           }
           for (int f : which) {
@@ -444,7 +461,8 @@ void register_commands(CLI::App& app, Context& ctx) {
             const fs::path mk = fs::path(*labeldir) / name;
             refuse_overwrite(mk, *force);
             std::vector<MarkupPoint> pts;
-            for (Landmark l : {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
+            for (Landmark l :
+                 {Landmark::kAnterolateralPapillaryTip, Landmark::kPosteromedialPapillaryTip})
               if (fr.observed(l)) pts.push_back({std::string(name_of_landmark(l)), fr.landmark(l)});
             if (!pts.empty()) {
               write_markups_json(mk, pts);
@@ -457,9 +475,11 @@ void register_commands(CLI::App& app, Context& ctx) {
             write_image_series(seq, series);
             cmdline += " --sequence " + seq.string();
           }
-          std::cout << "wrote " << which.size() << " label map(s) (" << o.labels.describe() << ", " << o.voxel_mm
-                    << " mm voxels" << (p.synthetic ? ", SYNTHETIC: from a virtual patient" : "") << ") to " << *labeldir
-                    << "\nimport them with:\n  " << cmdline << " --convention " << *convention << " --out imported.h5\n";
+          std::cout << "wrote " << which.size() << " label map(s) (" << o.labels.describe() << ", "
+                    << o.voxel_mm << " mm voxels"
+                    << (p.synthetic ? ", SYNTHETIC: from a virtual patient" : "") << ") to "
+                    << *labeldir << "\nimport them with:\n  " << cmdline << " --convention "
+                    << *convention << " --out imported.h5\n";
         }
         return 0;
       };
@@ -467,15 +487,17 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- export-model ----------------------------------------------------------------------------
   {
-    auto* cmd = app.add_subcommand(
-        "export-model", "Write the FE scene at end-diastole for ParaView and FEBio");
+    auto* cmd = app.add_subcommand("export-model",
+                                   "Write the FE scene at end-diastole for ParaView and FEBio");
     cmd->footer(
         "Example:\n  mvtwin export-model patient.h5 --out model/\n"
         "  mvtwin export-model patient.h5 --out model/ --set ures=40 --set clips=0.25,1,0.75,1\n"
-        "Writes leaflets.vtu / leaflets_quadratic.vtu (tags, fibres, prescribed flags), chordae.vtp\n"
+        "Writes leaflets.vtu / leaflets_quadratic.vtu (tags, fibres, prescribed flags), "
+        "chordae.vtp\n"
         "(rest lengths and laws), pressure_surface.vtp, boundary.csv (pressure profile, papillary\n"
         "tips), annulus_motion.csv and boundary.pvd (prescribed motion), valve.feb (FEBio 4.0).\n"
-        "Uses the patient's hidden parameters when it is synthetic, else the defaults; --set as in\n"
+        "Uses the patient's hidden parameters when it is synthetic, else the defaults; --set as "
+        "in\n"
         "mvtwin simulate.");
     auto file = std::make_shared<std::string>();
     auto dir = std::make_shared<std::string>();
@@ -502,8 +524,9 @@ void register_commands(CLI::App& app, Context& ctx) {
         const forward::ClosureScene scene = forward::make_closure_scene(p.sequence, par, o);
         std::ostringstream comment;
         comment << "mvtwin " << kVersion << " export-model of " << p.id
-                << (p.synthetic ? " [SYNTHETIC: virtual patient]" : "") << "\ncommand: "
-                << ctx.command_line << "\ncreated: " << utc_now_iso8601() << "\nparameters:";
+                << (p.synthetic ? " [SYNTHETIC: virtual patient]" : "")
+                << "\ncommand: " << ctx.command_line << "\ncreated: " << utc_now_iso8601()
+                << "\nparameters:";
         par.for_each([&](const std::string& name, double v, const char* unit) {
           comment << " " << name << "=" << v << " " << unit << ";";
         });
@@ -541,7 +564,8 @@ void register_commands(CLI::App& app, Context& ctx) {
     auto newton = std::make_shared<int>(1);
     cmd->add_option("--out", *out, "result file (HDF5)");
     auto use_detected = std::make_shared<bool>(false);
-    cmd->add_flag("--use-detected", *use_detected, "simulate the sequence detected from the images (mvtwin detect)");
+    cmd->add_flag("--use-detected", *use_detected,
+                  "simulate the sequence detected from the images (mvtwin detect)");
     cmd->add_flag("--force", *force, "replace an existing result file");
     cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
     cmd->add_option("--vtk", *dir, "directory for the ParaView series");
@@ -549,7 +573,7 @@ void register_commands(CLI::App& app, Context& ctx) {
     cmd->add_option("--dt", opts->dt, "time step, s")->default_val(0.01);
     cmd->add_option("--newton", *newton, "Newton iterations per step (1 = one linearization)")
         ->default_val(1);
-    const std::string default_solver = forward::name(forward::ClosureOptions{}.solver);
+    const std::string default_solver = forward::name(forward::ClosureOptions{}.solver.kind);
     auto solver = std::make_shared<std::string>(default_solver);
     cmd->add_option("--solver", *solver,
                     "reused-factor-pcg | cholmod-supernodal | cholmod-simplicial | eigen-ldlt")
@@ -564,9 +588,9 @@ void register_commands(CLI::App& app, Context& ctx) {
       ctx.run = [=] {
         const Patient p = read_patient_for_run(*file, *use_detected);
         forward::ClosureOptions o = *opts;
-        if (!forward::parse_linear_solver(*solver, &o.solver))
+        if (!forward::parse_linear_solver(*solver, &o.solver.kind))
           throw Error("unknown solver '" + *solver + "'");
-        o.contact = !*no_contact;
+        o.contact.enabled = !*no_contact;
         o.newton_iterations = *newton;
         ValveParameters par;
         if (p.truth) {
@@ -578,8 +602,8 @@ void register_commands(CLI::App& app, Context& ctx) {
         if (!out->empty()) refuse_overwrite(*out, *force);
         std::cout << "simulating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
                   << o.model.ures << " x " << o.model.vres << " grid, " << o.model.layers
-                  << " layer(s), dt " << o.dt << " s, contact " << (o.contact ? "on" : "off")
-                  << std::endl;
+                  << " layer(s), dt " << o.dt << " s, contact "
+                  << (o.contact.enabled ? "on" : "off") << std::endl;
         o.progress = progress_line("  closure");
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
         std::cout << r.summary.brief_report() << "\n";
@@ -587,8 +611,8 @@ void register_commands(CLI::App& app, Context& ctx) {
           std::cout << "  t = " << fmt(s.time_s, 2) << " s: tips to annulus plane, anterior "
                     << fmt(s.anterior_tip_mm) << " mm, posterior " << fmt(s.posterior_tip_mm)
                     << " mm; orifice " << fmt(s.orifice_area_mm2, 1) << " of "
-                    << fmt(s.annulus_area_mm2, 0) << " mm^2 (" << s.orifice_components
-                    << " opening" << (s.orifice_components == 1 ? "" : "s") << "); closest contact "
+                    << fmt(s.annulus_area_mm2, 0) << " mm^2 (" << s.orifice_components << " opening"
+                    << (s.orifice_components == 1 ? "" : "s") << "); closest contact "
                     << fmt(s.min_contact_distance_mm, 2) << " mm\n";
         }
         if (!r.samples.empty()) {
@@ -622,10 +646,10 @@ void register_commands(CLI::App& app, Context& ctx) {
   }
   // ---- distance --------------------------------------------------------------------------------
   {
-    auto* cmd =
-        app.add_subcommand("distance", "Point-to-mesh distance between two LA surfaces");
+    auto* cmd = app.add_subcommand("distance", "Point-to-mesh distance between two LA surfaces");
     cmd->footer(
-        "Example:\n  mvtwin distance 008_gt.h5 008_pred.h5\n  mvtwin distance closed.h5 patient.h5\n"
+        "Example:\n  mvtwin distance 008_gt.h5 008_pred.h5\n  mvtwin distance closed.h5 "
+        "patient.h5\n"
         "A and B are patient files or simulation results (their end surface). Patient frames\n"
         "default to the first closed frame (else frame 0); distances go from the vertices of\n"
         "one surface to the triangles of the other, both ways.");

@@ -9,7 +9,8 @@
 
 namespace mvtwin::inverse {
 struct CalibrationOptions;
-}
+enum class FitMethod;
+}  // namespace mvtwin::inverse
 
 namespace mvtwin::tools {
 
@@ -26,6 +27,9 @@ void register_bench(CLI::App& app, Context& ctx);
 void register_calibrate(CLI::App& app, Context& ctx);
 /// The fit options of calibrate: --jobs, --max-sims, --scan, --no-scan.
 void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* options);
+/// --method METHOD (bobyqa | cobyla | neldermead | sbplx | ceres) into *method; an unknown name
+/// is a usage error that lists the known ones.
+CLI::Option* add_method_option(CLI::App* cmd, inverse::FitMethod* method);
 /// mvtwin bench import (tools/bench_import.cpp), under the bench command.
 void register_bench_import(CLI::App& bench, Context& ctx);
 /// mvtwin clip (tools/clip.cpp).

@@ -63,7 +63,8 @@ void register_cohort(CLI::App* study, Context& ctx) {
       "Resumable: rerun the same command and finished patients are not redone. To compare\n"
       "optimizers, run one study per --method with the same --cache (observations are shared).");
   struct Args {
-    std::string out, folder, cache, fit = "restlength,stiffness,pressure", method = "bobyqa";
+    std::string out, folder, cache, fit = "restlength,stiffness,pressure";
+    inverse::FitMethod method = inverse::FitMethod::kBobyqa;
     int patients = 25, jobs = 2, max_sims = 50;
     std::uint64_t seed = 2026;
     double noise = 0.5, restlength_tolerance = 0.05;
@@ -83,8 +84,7 @@ void register_cohort(CLI::App* study, Context& ctx) {
                   "observed closures of virtual patients (default OUT/observed)");
   cmd->add_flag("--no-calibrate", a->no_calibrate, "default parameters only");
   cmd->add_option("--fit", a->fit, "what to calibrate")->default_val(a->fit);
-  cmd->add_option("--method", a->method, "bobyqa, cobyla, neldermead, sbplx or ceres")
-      ->default_val(a->method);
+  add_method_option(cmd, &a->method);
   cmd->add_option("--max-sims", a->max_sims, "simulations per calibration")
       ->default_val(50)
       ->check(CLI::Range(1, 100000));
@@ -185,10 +185,11 @@ void register_cohort(CLI::App* study, Context& ctx) {
         std::printf(
             "calibration (%s): %d patients, %s simulations each (%d failed in all), %s s each; "
             "rest-length factors within %.2f of the truth: %d of %d identified (%d not)\n",
-            o.method.c_str(), c["calibrated"].get<int>(), ms(c["simulations"]).c_str(),
-            c["failed_simulations"].get<int>(), ms(c["calibrate_s"]).c_str(),
-            rr["tolerance"].get<double>(), rr["identified_within_tolerance"].get<int>(),
-            rr["identified"].get<int>(), rr["unidentified"].get<int>());
+            inverse::fit_method_name(o.method), c["calibrated"].get<int>(),
+            ms(c["simulations"]).c_str(), c["failed_simulations"].get<int>(),
+            ms(c["calibrate_s"]).c_str(), rr["tolerance"].get<double>(),
+            rr["identified_within_tolerance"].get<int>(), rr["identified"].get<int>(),
+            rr["unidentified"].get<int>());
       }
       std::cout << "wrote " << (o.out / "study.json").string()
                 << ", study.h5, report.md, report.html (" << r.wall_s << " s)\n";

@@ -11,7 +11,6 @@
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/error.h"
-#include "mvtwin/core/units.h"
 #include "mvtwin/forward/chorda.h"
 #include "mvtwin/forward/interpenetration.h"
 
@@ -25,24 +24,6 @@ double seconds_since(Clock::time_point t0) {
 
 StepOutcome failed(Outcome o, std::string message) { return {o, std::move(message)}; }
 
-SelfContact::Options contact_options(const ClosureOptions& opt, double peak_pressure_mpa) {
-  SelfContact::Options co;
-  co.alarm_mm = opt.contact_alarm_mm;
-  co.contact_mm = opt.contact_distance_mm;
-  co.friction = opt.contact_friction;
-  co.wall_factor = opt.contact_wall_factor;
-  co.max_depth_mm = 0.5 * std::min(opt.model.al_thickness_mm, opt.model.pl_thickness_mm);
-  co.stiffness_per_area = opt.contact_stiffness_factor *
-                          std::max(peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
-                          (opt.contact_alarm_mm - opt.contact_distance_mm);
-  return co;
-}
-
-StepSolver::Options solver_options(const ClosureOptions& opt) {
-  return {opt.solver, opt.pcg_tolerance, opt.pcg_max_iterations, opt.refactor_iterations,
-          opt.single_precision_preconditioner};
-}
-
 }  // namespace
 
 ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOptions& options)
@@ -52,7 +33,7 @@ ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOpt
             [&scene](int tag) {
               return scene.leaflet_material[tag == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1];
             }),
-      linear_(solver_options(options)) {
+      linear_(options.solver) {
   std::string why;
   if (!options_.is_valid(&why)) throw Error("closure options: " + why);
   const SolidMesh& mesh = scene_.model.mesh;
@@ -83,9 +64,12 @@ ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOpt
   counters_.dofs = static_cast<int>(free_dofs_.size());
   counters_.elements = mesh.num_elements();
 
-  if (options_.contact)
-    contact_.emplace(SelfContact::valve_surface(scene_.model),
-                     contact_options(options_, scene_.peak_pressure_mpa));
+  if (options_.contact.enabled) {
+    const double thinnest =
+        std::min(options_.model.al_thickness_mm, options_.model.pl_thickness_mm);
+    contact_.emplace(SelfContact::valve_surface(scene_.model), options_.contact,
+                     options_.contact.stiffness_per_area(scene_.peak_pressure_mpa), 0.5 * thinnest);
+  }
   sampler_ = make_atrial_sampler(scene_.model, options_.model.ures, options_.model.vres);
 
   // The step matrix on a fixed pattern: every element, and each cable's end nodes.
@@ -305,7 +289,7 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
   StepSolver::System A{[this](const Eigen::VectorXd& p, Eigen::VectorXd* y) { multiply(p, y); },
                        [this]() -> const Eigen::SparseMatrix<double>& { return assemble_lower(); },
                        nullptr};
-  if (options_.rotated_preconditioner && terms_.elastic)
+  if (terms_.elastic)
     A.rotate = [this](Eigen::VectorXd* v, bool transpose) { rotate(v, transpose); };
 
   for (int it = 0; it < options_.newton_iterations; ++it) {
@@ -338,7 +322,7 @@ StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eige
   if (!x1.allFinite()) return failed(Outcome::kNonFiniteState, "non-finite positions");
   if (const int bad = body_.first_inverted(x1); bad >= 0)
     return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
-  if (contact_ && options_.contact_ccd) {
+  if (contact_ && options_.contact.ccd) {
     const auto tc = Clock::now();
     const int crossing = contact_->find_crossing(x0, x1);
     counters_.contact_s += seconds_since(tc);

@@ -58,9 +58,7 @@ double ClosureScene::pressure(double tau) const {
   return peak_pressure_mpa * smoothstep(duration_ > 0 ? tau / duration_ : 1.0);
 }
 
-int ClosureScene::clamp_frame(int i) const {
-  return std::clamp(i, 0, sequence_.num_frames() - 1);
-}
+int ClosureScene::clamp_frame(int i) const { return std::clamp(i, 0, sequence_.num_frames() - 1); }
 
 // Catmull-Rom weights over frames (f-1, f, f+1, f+2) at observed time t: the prescribed motion
 // is C1 in time between the image frames.
@@ -112,17 +110,16 @@ bool ClosureScene::observed_at_end_diastole(Landmark l) const {
 }
 
 Eigen::Vector3d ClosureScene::papillary_tip(int k, double tau) const {
-  return landmark(k == 0 ? Landmark::kAnterolateralPapillaryTip
-                         : Landmark::kPosteromedialPapillaryTip,
-                  tau);
+  return landmark(
+      k == 0 ? Landmark::kAnterolateralPapillaryTip : Landmark::kPosteromedialPapillaryTip, tau);
 }
 
 void ClosureScene::prescribed_positions(double tau, Eigen::VectorXd* x) const {
   const auto a = annulus(tau);
   for (const PrescribedNode& p : prescribed) {
     const Eigen::Vector3d d =
-        0.5 * ((a.row(p.ua) - annulus_ed_.row(p.ua)) + (a.row(p.ub) - annulus_ed_.row(p.ub)))
-                  .transpose();
+        0.5 *
+        ((a.row(p.ua) - annulus_ed_.row(p.ua)) + (a.row(p.ub) - annulus_ed_.row(p.ub))).transpose();
     x->segment<3>(3 * p.node) = model.mesh.V.row(p.node).transpose() + d;
   }
 }
@@ -140,13 +137,15 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
   sc.model = build_valve_model(seq, opt.model);
   const ValveModel& model = sc.model;
   const SolidMesh& mesh = model.mesh;
-  sc.leaflet_material = {TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale),
-                         TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale)};
+  sc.leaflet_material = {
+      TransverselyIsotropic::anterior_leaflet().scaled(params.al_modulus_scale),
+      TransverselyIsotropic::posterior_leaflet().scaled(params.pl_modulus_scale)};
   sc.sequence_ = seq;
   sc.stretch_ = opt.stretch;
   sc.annulus_motion_ = opt.annulus_motion;
   sc.papillary_motion_ = opt.papillary_motion;
-  sc.duration_ = opt.stretch * (seq.frames[seq.first_closed].time_s - seq.frames[seq.end_diastole].time_s);
+  sc.duration_ =
+      opt.stretch * (seq.frames[seq.first_closed].time_s - seq.frames[seq.end_diastole].time_s);
   if (!(sc.duration_ > 0)) throw Error("closure simulation: the closure lasts no time");
   const int U = opt.model.ures, L = opt.model.layers;
   for (const ValveFrame& f : seq.frames) sc.annulus_.push_back(resample_closed_curve(f.annulus, U));
@@ -181,8 +180,8 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
     sp.a = cross_section(model, nearest_surface_node(model, clip.anterior_s, clip.anterior_t));
     sp.b = cross_section(model, nearest_surface_node(model, clip.posterior_s, clip.posterior_t));
     sp.stiffness = clip.stiffness_n_per_mm;
-    sp.rest_length = 0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) +
-                     opt.contact_distance_mm;
+    sp.rest_length =
+        0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) + opt.contact.contact_mm;
     sc.springs.push_back(sp);
   }
 

@@ -78,14 +78,14 @@ const std::map<std::string, Field>& fields() {
     dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });
     dbl("rayleigh_stiffness", [](ClosureOptions& o) -> double& { return o.rayleigh_stiffness; });
     dbl("newton_tolerance", [](ClosureOptions& o) -> double& { return o.newton_tolerance; });
-    dbl("pcg_tolerance", [](ClosureOptions& o) -> double& { return o.pcg_tolerance; });
-    dbl("contact_alarm_mm", [](ClosureOptions& o) -> double& { return o.contact_alarm_mm; });
-    dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact_distance_mm; });
-    dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact_friction; });
+    dbl("pcg_tolerance", [](ClosureOptions& o) -> double& { return o.solver.pcg_tolerance; });
+    dbl("contact_alarm_mm", [](ClosureOptions& o) -> double& { return o.contact.alarm_mm; });
+    dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact.contact_mm; });
+    dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact.friction; });
     dbl("inversion_guard", [](ClosureOptions& o) -> double& { return o.inversion_guard; });
-    dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact_wall_factor; });
+    dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact.wall_factor; });
     dbl("contact_stiffness_factor",
-        [](ClosureOptions& o) -> double& { return o.contact_stiffness_factor; });
+        [](ClosureOptions& o) -> double& { return o.contact.stiffness_factor; });
     dbl("al_thickness_mm", [](ClosureOptions& o) -> double& { return o.model.al_thickness_mm; });
     dbl("pl_thickness_mm", [](ClosureOptions& o) -> double& { return o.model.pl_thickness_mm; });
     integer("ures", [](ClosureOptions& o) -> int& { return o.model.ures; });
@@ -93,18 +93,19 @@ const std::map<std::string, Field>& fields() {
     integer("layers", [](ClosureOptions& o) -> int& { return o.model.layers; });
     integer("marginal_chordae", [](ClosureOptions& o) -> int& { return o.model.marginal_chordae; });
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
-    integer("pcg_max_iterations", [](ClosureOptions& o) -> int& { return o.pcg_max_iterations; });
+    integer("pcg_max_iterations",
+            [](ClosureOptions& o) -> int& { return o.solver.pcg_max_iterations; });
     integer("refactor_iterations",
-            [](ClosureOptions& o) -> int& { return o.refactor_iterations; });
+            [](ClosureOptions& o) -> int& { return o.solver.refactor_iterations; });
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
     boolean("single_precision_preconditioner",
-            [](ClosureOptions& o) -> bool& { return o.single_precision_preconditioner; });
+            [](ClosureOptions& o) -> bool& { return o.solver.single_precision_preconditioner; });
     boolean("rotated_preconditioner",
-            [](ClosureOptions& o) -> bool& { return o.rotated_preconditioner; });
+            [](ClosureOptions& o) -> bool& { return o.solver.rotated_preconditioner; });
     boolean("curved", [](ClosureOptions& o) -> bool& { return o.model.curved; });
-    boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact; });
-    boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact_ccd; });
+    boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact.enabled; });
+    boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact.ccd; });
     boolean("annulus_motion", [](ClosureOptions& o) -> bool& { return o.annulus_motion; });
     boolean("papillary_motion", [](ClosureOptions& o) -> bool& { return o.papillary_motion; });
     m["order"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
@@ -117,15 +118,14 @@ const std::map<std::string, Field>& fields() {
                     }
                   },
                   [](const ClosureOptions& o) {
-                    return std::string(o.model.order == TetOrder::kLinear ? "linear"
-                                                                          : "quadratic");
+                    return std::string(o.model.order == TetOrder::kLinear ? "linear" : "quadratic");
                   }};
     m["solver"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
-                     if (!parse_linear_solver(v, &o.solver)) {
+                     if (!parse_linear_solver(v, &o.solver.kind)) {
                        throw Error("--set " + k + ": unknown solver '" + v + "'");
                      }
                    },
-                   [](const ClosureOptions& o) { return std::string(name(o.solver)); }};
+                   [](const ClosureOptions& o) { return std::string(name(o.solver.kind)); }};
     // Lists: clips as "s_a,t_a,s_p,t_p[,k];..." and ruptured chordae as "i,j,...".
     m["clips"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
                     o.clips.clear();
@@ -138,8 +138,10 @@ const std::map<std::string, Field>& fields() {
                       std::string item;
                       while (std::getline(parts, item, ',')) x.push_back(to_double(k, item));
                       if (x.size() != 4 && x.size() != 5) {
-                        throw Error("--set " + k + ": a clip is s_anterior,t_anterior,"
-                                    "s_posterior,t_posterior[,stiffness N/mm], got '" + one + "'");
+                        throw Error("--set " + k +
+                                    ": a clip is s_anterior,t_anterior,"
+                                    "s_posterior,t_posterior[,stiffness N/mm], got '" +
+                                    one + "'");
                       }
                       ClipOptions c;
                       c.anterior_s = x[0];
@@ -153,9 +155,9 @@ const std::map<std::string, Field>& fields() {
                   [](const ClosureOptions& o) {
                     std::string out;
                     for (const ClipOptions& c : o.clips) {
-                      out += (out.empty() ? "" : ";") + str(c.anterior_s) + "," + str(c.anterior_t) +
-                             "," + str(c.posterior_s) + "," + str(c.posterior_t) + "," +
-                             str(c.stiffness_n_per_mm);
+                      out += (out.empty() ? "" : ";") + str(c.anterior_s) + "," +
+                             str(c.anterior_t) + "," + str(c.posterior_s) + "," +
+                             str(c.posterior_t) + "," + str(c.stiffness_n_per_mm);
                     }
                     return out;
                   }};
@@ -170,7 +172,8 @@ const std::map<std::string, Field>& fields() {
         },
         [](const ClosureOptions& o) {
           std::string out;
-          for (int i : o.ruptured_marginal_chordae) out += (out.empty() ? "" : ",") + std::to_string(i);
+          for (int i : o.ruptured_marginal_chordae)
+            out += (out.empty() ? "" : ",") + std::to_string(i);
           return out;
         }};
     dbl("clip_closing_s", [](ClosureOptions& o) -> double& { return o.clip_closing_s; });

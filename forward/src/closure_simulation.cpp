@@ -30,9 +30,7 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(density > 0)) return bad("density must be positive");
   if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0))
     return bad("Rayleigh coefficients must be >= 0");
-  if (!(pcg_tolerance > 0 && pcg_tolerance < 1) || pcg_max_iterations < 1)
-    return bad("pcg_tolerance must be in (0, 1) and pcg_max_iterations >= 1");
-  if (refactor_iterations < 1) return bad("refactor_iterations must be >= 1");
+  if (!solver.is_valid(error) || !contact.is_valid(error)) return false;
   if (!(inversion_guard >= 0 && inversion_guard < 1))
     return bad("inversion_guard must be in [0, 1) (0: off)");
   if (!(clip_closing_s > 0 && clip_closing_s <= 100))
@@ -46,17 +44,9 @@ bool ClosureOptions::is_valid(std::string* error) const {
     if (!(c.stiffness_n_per_mm > 0 && c.stiffness_n_per_mm < 1e4))
       return bad("clip stiffness must be in (0, 1e4) N/mm");
   }
-  if (!(contact_wall_factor >= 0 && contact_wall_factor <= 1e4))
-    return bad("contact_wall_factor must be in [0, 1e4]");
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
-  if (!(contact_alarm_mm > contact_distance_mm && contact_distance_mm >= 0 &&
-        contact_alarm_mm <= 5))
-    return bad("contact distances must satisfy 0 <= contact < alarm <= 5 mm");
-  if (!(contact_friction >= 0 && contact_friction <= 5)) return bad("friction must be in [0, 5]");
-  if (!(contact_stiffness_factor >= 1 && contact_stiffness_factor <= 1000))
-    return bad("contact_stiffness_factor must be in [1, 1000]");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
   for (int k : ruptured_marginal_chordae) {

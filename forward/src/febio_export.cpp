@@ -22,7 +22,9 @@ std::string num(double x) {
   return os.str();
 }
 
-std::string vec(const Eigen::Vector3d& v) { return num(v.x()) + "," + num(v.y()) + "," + num(v.z()); }
+std::string vec(const Eigen::Vector3d& v) {
+  return num(v.x()) + "," + num(v.y()) + "," + num(v.z());
+}
 
 /// XML comments may not contain "--".
 std::string comment_safe(std::string s) {
@@ -67,14 +69,14 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const int samples = 41;
   auto sample_time = [&](int k) { return T * k / (samples - 1); };
 
-  std::ostringstream lc;        // LoadData
+  std::ostringstream lc;  // LoadData
   int curves = 0;
   auto add_curve = [&](const std::string& name, const std::vector<std::pair<double, double>>& pts,
                        const char* extend) {
     ++curves;
     lc << "    <load_controller id=\"" << curves << "\" name=\"" << name
-       << "\" type=\"loadcurve\">\n      <interpolate>LINEAR</interpolate>\n      <extend>" << extend
-       << "</extend>\n      <points>\n";
+       << "\" type=\"loadcurve\">\n      <interpolate>LINEAR</interpolate>\n      <extend>"
+       << extend << "</extend>\n      <points>\n";
     for (const auto& [t, v] : pts) lc << "        <pt>" << num(t) << "," << num(v) << "</pt>\n";
     lc << "      </points>\n    </load_controller>\n";
     return curves;
@@ -87,7 +89,7 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "Not expressible in FEBio and therefore not in this file: Rayleigh damping (alpha_M = "
      << num(opt.rayleigh_mass) << " 1/s, alpha_K = " << num(opt.rayleigh_stiffness)
      << " s; the analysis is quasi-static instead), self-contact within one leaflet, the\n"
-     << "contact wall below the minimum distance (wall factor " << num(opt.contact_wall_factor)
+     << "contact wall below the minimum distance (wall factor " << num(opt.contact.wall_factor)
      << "), the inversion guard, the clip phase.\n-->\n";
   os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
   os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
@@ -147,7 +149,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const char* facet_type = quadratic ? "tri6" : "tri3";
   auto facet = [&](int id, int a, int b, int c) {
     std::ostringstream f;
-    f << "      <" << facet_type << " id=\"" << id << "\">" << a + 1 << "," << b + 1 << "," << c + 1;
+    f << "      <" << facet_type << " id=\"" << id << "\">" << a + 1 << "," << b + 1 << ","
+      << c + 1;
     if (quadratic) {
       f << "," << mesh.mid_node(a, b) + 1 << "," << mesh.mid_node(b, c) + 1 << ","
         << mesh.mid_node(c, a) + 1;
@@ -166,7 +169,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
       const bool anterior = m.surface_st(m.surface_triangles(f, 0), 0) < 0.5;
       if (anterior != (k == 0)) continue;
       for (int layer : {0, m.options.layers}) {
-        int a = m.node(m.surface_triangles(f, 0), layer), b = m.node(m.surface_triangles(f, 1), layer),
+        int a = m.node(m.surface_triangles(f, 0), layer),
+            b = m.node(m.surface_triangles(f, 1), layer),
             c = m.node(m.surface_triangles(f, 2), layer);
         if (layer == 0) std::swap(b, c);  // outward: towards the atrium on the atrial surface
         os << facet(++fid, a, b, c);
@@ -207,8 +211,9 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
       std::ostringstream name;
       name << "chorda_" << c + 1;
       if (mid.size() > 1) name << "_" << j + 1;
-      springs.push_back({name.str(), mid[j] + 1, n + 1 + ch.tip, 1.0 / static_cast<double>(mid.size()),
-                         initial, ch.rest_length, &ch.law, 0.0});
+      springs.push_back({name.str(), mid[j] + 1, n + 1 + ch.tip,
+                         1.0 / static_cast<double>(mid.size()), initial, ch.rest_length, &ch.law,
+                         0.0});
     }
   }
   for (size_t c = 0; c < scene.springs.size(); ++c) {
@@ -257,7 +262,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
         std::vector<std::pair<double, double>> pts;
         for (int k = 0; k < samples; ++k)
           pts.emplace_back(sample_time(k), positions[k][3 * p.node + d] - mesh.V(p.node, d));
-        const int id = add_curve("annulus_" + std::to_string(p.node + 1) + "_" + axes[d], pts, "CONSTANT");
+        const int id =
+            add_curve("annulus_" + std::to_string(p.node + 1) + "_" + axes[d], pts, "CONSTANT");
         os << "    <bc name=\"annulus_" << p.node + 1 << "_" << axes[d] << "\" node_set=\"annulus_"
            << p.node + 1 << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
            << "</dof>\n      <value lc=\"" << id << "\">1</value>\n      <relative>0</relative>\n"
@@ -268,9 +274,10 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
       for (int d = 0; d < 3; ++d) {
         std::vector<std::pair<double, double>> pts;
         for (int k = 0; k < samples; ++k)
-          pts.emplace_back(sample_time(k),
-                           scene.papillary_tip(tip, sample_time(k))[d] - scene.papillary_tip(tip, 0.0)[d]);
-        const int id = add_curve("papillary_tip_" + std::to_string(tip + 1) + "_" + axes[d], pts, "CONSTANT");
+          pts.emplace_back(sample_time(k), scene.papillary_tip(tip, sample_time(k))[d] -
+                                               scene.papillary_tip(tip, 0.0)[d]);
+        const int id =
+            add_curve("papillary_tip_" + std::to_string(tip + 1) + "_" + axes[d], pts, "CONSTANT");
         os << "    <bc name=\"papillary_tip_" << tip + 1 << "_" << axes[d]
            << "\" node_set=\"papillary_tip_" << tip + 1
            << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
@@ -285,22 +292,25 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   {
     std::vector<std::pair<double, double>> pts;
     for (int k = 0; k < samples; ++k)
-      pts.emplace_back(sample_time(k), scene.peak_pressure_mpa > 0
-                                           ? scene.pressure(sample_time(k)) / scene.peak_pressure_mpa
-                                           : 0.0);
+      pts.emplace_back(sample_time(k),
+                       scene.peak_pressure_mpa > 0
+                           ? scene.pressure(sample_time(k)) / scene.peak_pressure_mpa
+                           : 0.0);
     const int id = add_curve("pressure_profile", pts, "CONSTANT");
-    os << "  <Loads>\n    <surface_load name=\"pressure\" surface=\"ventricular\" type=\"pressure\">\n"
+    os << "  <Loads>\n    <surface_load name=\"pressure\" surface=\"ventricular\" "
+          "type=\"pressure\">\n"
        << "      <pressure lc=\"" << id << "\">" << num(scene.peak_pressure_mpa) << "</pressure>\n"
        << "      <symmetric_stiffness>1</symmetric_stiffness>\n      <linear>0</linear>\n"
        << "      <shell_bottom>0</shell_bottom>\n    </surface_load>\n  </Loads>\n";
   }
 
-  if (opt.contact) {
-    os << "  <Contact>\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" type=\"sliding-elastic\">\n"
+  if (opt.contact.enabled) {
+    os << "  <Contact>\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" "
+          "type=\"sliding-elastic\">\n"
        << "      <two_pass>1</two_pass>\n      <auto_penalty>1</auto_penalty>\n"
-       << "      <penalty>1</penalty>\n      <fric_coeff>" << num(opt.contact_friction)
+       << "      <penalty>1</penalty>\n      <fric_coeff>" << num(opt.contact.friction)
        << "</fric_coeff>\n      <search_tol>0.01</search_tol>\n      <search_radius>"
-       << num(opt.contact_alarm_mm) << "</search_radius>\n      <gaptol>0</gaptol>\n"
+       << num(opt.contact.alarm_mm) << "</search_radius>\n      <gaptol>0</gaptol>\n"
        << "      <symmetric_stiffness>0</symmetric_stiffness>\n    </contact>\n  </Contact>\n";
   }
 

@@ -10,6 +10,7 @@
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_triangle_distance.h"
+#include "mvtwin/core/units.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -67,7 +68,7 @@ SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
   std::vector<Eigen::Vector2d> plane;
   for (int i = 0; i < N; ++i) plane.push_back(m.surface_plane.row(i).transpose());
   s.period = m.perimeter;
-  std::map<int, int> plane_of_node;   // contact node -> plane index
+  std::map<int, int> plane_of_node;  // contact node -> plane index
   std::map<int, double> area_of_node;
   auto plane_index = [&](int node, int sa, int sb) {
     const auto it = plane_of_node.find(node);
@@ -100,9 +101,13 @@ SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
           mpl[k] = plane_index(mid[k], sid[a], sid[b]);
         }
         // corners 0,1,2; mids 01, 12, 20
-        sub = {{nd[0], mid[0], mid[2]}, {mid[0], nd[1], mid[1]}, {mid[2], mid[1], nd[2]},
+        sub = {{nd[0], mid[0], mid[2]},
+               {mid[0], nd[1], mid[1]},
+               {mid[2], mid[1], nd[2]},
                {mid[0], mid[1], mid[2]}};
-        sub_plane = {{pl[0], mpl[0], mpl[2]}, {mpl[0], pl[1], mpl[1]}, {mpl[2], mpl[1], pl[2]},
+        sub_plane = {{pl[0], mpl[0], mpl[2]},
+                     {mpl[0], pl[1], mpl[1]},
+                     {mpl[2], mpl[1], pl[2]},
                      {mpl[0], mpl[1], mpl[2]}};
       } else {
         sub = {{nd[0], nd[1], nd[2]}};
@@ -128,25 +133,49 @@ SelfContact::Surface SelfContact::valve_surface(const ValveModel& m) {
     s.vertex_area.push_back(area);
   }
   s.plane.resize(static_cast<Eigen::Index>(plane.size()), 2);
-  for (size_t i = 0; i < plane.size(); ++i) s.plane.row(static_cast<Eigen::Index>(i)) = plane[i].transpose();
+  for (size_t i = 0; i < plane.size(); ++i)
+    s.plane.row(static_cast<Eigen::Index>(i)) = plane[i].transpose();
   return s;
 }
 
-SelfContact::SelfContact(Surface surface, const Options& o) : opt_(o), s_(std::move(surface)) {
-  if (!(o.alarm_mm > o.contact_mm && o.contact_mm >= 0.0)) {
-    throw Error("self-contact: need alarm distance > contact distance >= 0");
-  }
-  if (!(o.friction >= 0.0 && o.friction_slip_mm_per_s > 0.0 && o.stiffness_per_area >= 0.0 &&
-        o.margin_mm > 0.0 && o.exclusion_mm >= 0.0 && o.max_depth_mm > 0.0)) {
-    throw Error("self-contact: friction, stiffness, margin and exclusion must be >= 0");
-  }
+bool SelfContactOptions::is_valid(std::string* error) const {
+  auto bad = [&](const char* m) {
+    *error = m;
+    return false;
+  };
+  if (!(alarm_mm > contact_mm && contact_mm >= 0 && alarm_mm <= 5))
+    return bad("contact distances must satisfy 0 <= contact < alarm <= 5 mm");
+  if (!(friction >= 0 && friction <= 5)) return bad("contact friction must be in [0, 5]");
+  if (!(friction_slip_mm_per_s > 0)) return bad("contact friction slip must be positive");
+  if (!(stiffness_factor >= 1 && stiffness_factor <= 1000))
+    return bad("contact stiffness factor must be in [1, 1000]");
+  if (!(wall_factor >= 0 && wall_factor <= 1e4))
+    return bad("contact wall factor must be in [0, 1e4]");
+  if (!(exclusion_mm >= 0 && margin_mm > 0))
+    return bad("contact exclusion must be >= 0 and margin > 0 mm");
+  return true;
+}
+
+double SelfContactOptions::stiffness_per_area(double peak_pressure_mpa) const {
+  return stiffness_factor * std::max(peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
+         (alarm_mm - contact_mm);
+}
+
+SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double stiffness_per_area,
+                         double max_depth_mm)
+    : opt_(o),
+      stiffness_per_area_(stiffness_per_area),
+      max_depth_mm_(max_depth_mm),
+      s_(std::move(surface)) {
+  if (std::string why; !o.is_valid(&why)) throw Error("self-contact: " + why);
+  if (!(stiffness_per_area >= 0.0 && std::isfinite(stiffness_per_area) && max_depth_mm > 0.0))
+    throw Error("self-contact: stiffness per area must be >= 0 and the maximum depth > 0");
   if (s_.vertices.size() != s_.vertex_plane.size() || s_.vertices.size() != s_.vertex_area.size() ||
       s_.triangles.size() != s_.triangle_plane.size() ||
       s_.triangles.size() != s_.triangle_outward.size() ||
       (!s_.triangle_group.empty() && s_.triangle_group.size() != s_.triangles.size())) {
     throw Error("self-contact: surface arrays differ in size");
   }
-
 }
 
 void SelfContact::full_search(const Eigen::VectorXd& x) {
@@ -240,7 +269,7 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
       if (w.minCoeff() > 1e-9) {
         n = s_.triangle_outward[t] * (b - a).cross(c - a).normalized();
         d = n.dot(p - q);
-        if (d < -opt_.max_depth_mm) continue;
+        if (d < -max_depth_mm_) continue;
       } else {
         d = (p - q).norm();
         n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
@@ -274,9 +303,10 @@ namespace {
 /// inside the triangle, with p ending on the inner side (opposite to `outward`, +1 along
 /// (b - a) x (c - a)). A vertex that had sunk slightly in and comes back out is not a crossing.
 bool vertex_triangle_crossing(const Eigen::Vector3d p[2], const Eigen::Vector3d a[2],
-                              const Eigen::Vector3d b[2], const Eigen::Vector3d c[2],
-                              int outward) {
-  auto at = [](const Eigen::Vector3d q[2], double t) { return Eigen::Vector3d((1 - t) * q[0] + t * q[1]); };
+                              const Eigen::Vector3d b[2], const Eigen::Vector3d c[2], int outward) {
+  auto at = [](const Eigen::Vector3d q[2], double t) {
+    return Eigen::Vector3d((1 - t) * q[0] + t * q[1]);
+  };
   auto f = [&](double t) {
     const Eigen::Vector3d A = at(a, t);
     return (at(b, t) - A).cross(at(c, t) - A).dot(at(p, t) - A);
@@ -285,7 +315,8 @@ bool vertex_triangle_crossing(const Eigen::Vector3d p[2], const Eigen::Vector3d 
     const Eigen::Vector3d A = at(a, t), B = at(b, t), C = at(c, t), P = at(p, t);
     const Eigen::Vector3d w = barycentric(P, A, B, C);
     const double tol = 1e-6;
-    return w.minCoeff() >= -tol && (P - (w[0] * A + w[1] * B + w[2] * C)).norm() < 1e-6 + 1e-3 * (B - A).norm();
+    return w.minCoeff() >= -tol &&
+           (P - (w[0] * A + w[1] * B + w[2] * C)).norm() < 1e-6 + 1e-3 * (B - A).norm();
   };
   // A cubic has at most 3 roots: sample finely enough to separate them on valve-scale motion,
   // then bisect each sign change.
@@ -323,11 +354,13 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
   if (x_search_.size() == x0.size()) {
     since_search = 0.0;
     for (int v : s_.vertices) {
-      since_search = std::max({since_search, (x0.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm(),
-                               (x1.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm()});
+      since_search =
+          std::max({since_search, (x0.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm(),
+                    (x1.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm()});
     }
   }
-  for (int v : s_.vertices) step_motion = std::max(step_motion, (x1.segment<3>(3 * v) - x0.segment<3>(3 * v)).norm());
+  for (int v : s_.vertices)
+    step_motion = std::max(step_motion, (x1.segment<3>(3 * v) - x0.segment<3>(3 * v)).norm());
   auto test = [&](int i, int t) {
     const int v = s_.vertices[i];
     const auto& tri = s_.triangles[t];
@@ -348,7 +381,8 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
   auto cell = [&](double v) { return static_cast<std::int64_t>(std::floor(v / h)); };
   std::vector<std::pair<std::int64_t, int>> cells;
   for (size_t i = 0; i < s_.vertices.size(); ++i) {
-    const Eigen::Vector3d m = 0.5 * (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i]));
+    const Eigen::Vector3d m =
+        0.5 * (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i]));
     cells.emplace_back(CellKey::of(m, h), static_cast<int>(i));
   }
   std::sort(cells.begin(), cells.end());
@@ -410,7 +444,7 @@ double SelfContact::add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f) {
   for (Pair& pr : pairs_) {
     pr.force = pr.stiffness = pr.eta = 0.0;
     if (pr.distance >= da) continue;
-    const double k = opt_.stiffness_per_area * pr.area;
+    const double k = stiffness_per_area_ * pr.area;
     law(pr.distance, k, &pr.force, &pr.stiffness);
     energy += 0.5 * k * (da - pr.distance) * (da - pr.distance);
     if (pr.distance < dc && dc > 0) {
@@ -453,8 +487,7 @@ void SelfContact::add_diagonal_blocks(double scale_k, double scale_c,
 }
 
 double SelfContact::add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
-                        std::vector<Eigen::Triplet<double>>* trip, double scale_k,
-                        double scale_c) {
+                        std::vector<Eigen::Triplet<double>>* trip, double scale_k, double scale_c) {
   const double energy = add_forces(v, f);
   for (const Pair& pr : pairs_) {
     if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;

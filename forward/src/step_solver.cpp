@@ -1,13 +1,15 @@
 #include "mvtwin/forward/step_solver.h"
 
+#include "mvtwin/core/error.h"
+
 #include <cmath>
 #include <cstring>
 
 #include <chrono>
 
 #include <dlfcn.h>
-#include <mutex>
 #include <omp.h>
+#include <mutex>
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
@@ -70,9 +72,10 @@ class Factor {
  public:
   virtual ~Factor() = default;
   bool factorize(const Eigen::SparseMatrix<double>& A, StepSolver::Stats* st) {
-    const bool same = A.rows() == rows_ && A.nonZeros() == static_cast<Eigen::Index>(inner_.size()) &&
-                      std::memcmp(A.outerIndexPtr(), outer_.data(), outer_.size() * sizeof(int)) == 0 &&
-                      std::memcmp(A.innerIndexPtr(), inner_.data(), inner_.size() * sizeof(int)) == 0;
+    const bool same =
+        A.rows() == rows_ && A.nonZeros() == static_cast<Eigen::Index>(inner_.size()) &&
+        std::memcmp(A.outerIndexPtr(), outer_.data(), outer_.size() * sizeof(int)) == 0 &&
+        std::memcmp(A.innerIndexPtr(), inner_.data(), inner_.size() * sizeof(int)) == 0;
     if (!same) {
       serial_openmp();
       rows_ = A.rows();
@@ -233,7 +236,24 @@ struct StepSolver::Impl {
   bool stale = false;
 };
 
-StepSolver::StepSolver(const Options& o) : impl_(std::make_unique<Impl>()), opt_(o) {
+bool StepSolverOptions::is_valid(std::string* error) const {
+  if (!(pcg_tolerance > 0 && pcg_tolerance < 1)) {
+    *error = "pcg_tolerance must be in (0, 1)";
+    return false;
+  }
+  if (pcg_max_iterations < 1) {
+    *error = "pcg_max_iterations must be >= 1";
+    return false;
+  }
+  if (refactor_iterations < 1) {
+    *error = "refactor_iterations must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+StepSolver::StepSolver(const StepSolverOptions& o) : impl_(std::make_unique<Impl>()), opt_(o) {
+  if (std::string why; !o.is_valid(&why)) throw Error("step solver options: " + why);
   switch (o.kind) {
     case LinearSolver::kCholmodSimplicial:
       impl_->factor = std::make_unique<
@@ -251,8 +271,6 @@ StepSolver::StepSolver(const Options& o) : impl_(std::make_unique<Impl>()), opt_
 }
 
 StepSolver::~StepSolver() = default;
-
-void StepSolver::invalidate() { impl_->stale = true; }
 
 bool StepSolver::factorize(const System& A, std::string* why) {
   const auto t0 = Clock::now();
@@ -297,7 +315,7 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
   auto precondition = [&](const Eigen::VectorXd& r) {
     const auto t = Clock::now();
     Eigen::VectorXd z;
-    if (A.rotate && !fresh) {
+    if (A.rotate && opt_.rotated_preconditioner && !fresh) {
       Eigen::VectorXd rr = r;
       A.rotate(&rr, true);
       z = impl_->factor->apply(rr);

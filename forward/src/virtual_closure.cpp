@@ -17,7 +17,7 @@ ClosureOptions VirtualClosureOptions::fine_default() {
   o.model.vres = 40;
   o.model.layers = 3;
   o.dt = 1e-3;
-  o.pcg_tolerance = 1e-3;  // a tenth of the calibration model's linear-solve tolerance
+  o.solver.pcg_tolerance = 1e-3;  // a tenth of the calibration model's linear-solve tolerance
   return o;
 }
 
@@ -93,8 +93,8 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   os << "frames " << seq.end_diastole + 1 << ".." << seq.first_closed
      << " simulated with the hidden parameters by mvtwin (ures " << o.model.ures << ", vres "
      << o.model.vres << ", " << o.model.layers << " layers, dt " << o.dt << " s, Newton "
-     << o.newton_iterations << ", contact factor " << o.contact_stiffness_factor << " wall "
-     << o.contact_wall_factor << ", linear tolerance " << o.pcg_tolerance
+     << o.newton_iterations << ", contact factor " << o.contact.stiffness_factor << " wall "
+     << o.contact.wall_factor << ", linear tolerance " << o.solver.pcg_tolerance
      << "), nearest recorded state to each frame time, plus " << opt.noise_mm
      << " mm Gaussian noise along the normals; later frames unobserved; simulation: "
      << r.summary.brief_report();

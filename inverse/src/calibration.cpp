@@ -6,8 +6,8 @@
 #include <limits>
 #include <mutex>
 
-#include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
+#include <Eigen/Eigenvalues>
 #include <nlopt.hpp>
 
 #include "mvtwin/core/error.h"
@@ -62,24 +62,38 @@ class Tracker {
   std::vector<HistoryEntry> history_;
 };
 
-nlopt::algorithm nlopt_algorithm(const std::string& m) {
-  if (m == "bobyqa") return nlopt::LN_BOBYQA;
-  if (m == "cobyla") return nlopt::LN_COBYLA;
-  if (m == "neldermead") return nlopt::LN_NELDERMEAD;
-  if (m == "sbplx") return nlopt::LN_SBPLX;
-  throw Error("calibrate: unknown method '" + m +
-              "' (bobyqa, cobyla, neldermead, sbplx, ceres)");
+nlopt::algorithm nlopt_algorithm(FitMethod m) {
+  switch (m) {
+    case FitMethod::kBobyqa:
+      return nlopt::LN_BOBYQA;
+    case FitMethod::kCobyla:
+      return nlopt::LN_COBYLA;
+    case FitMethod::kNelderMead:
+      return nlopt::LN_NELDERMEAD;
+    case FitMethod::kSbplx:
+      return nlopt::LN_SBPLX;
+    case FitMethod::kCeres:
+      break;
+  }
+  throw Error(std::string("calibrate: ") + fit_method_name(m) + " is not an NLopt method");
 }
 
 std::string nlopt_result_name(nlopt::result r) {
   switch (r) {
-    case nlopt::SUCCESS: return "success";
-    case nlopt::STOPVAL_REACHED: return "stop value reached";
-    case nlopt::FTOL_REACHED: return "error tolerance reached";
-    case nlopt::XTOL_REACHED: return "step tolerance reached";
-    case nlopt::MAXEVAL_REACHED: return "simulation budget used";
-    case nlopt::MAXTIME_REACHED: return "time limit reached";
-    default: return "nlopt result " + std::to_string(static_cast<int>(r));
+    case nlopt::SUCCESS:
+      return "success";
+    case nlopt::STOPVAL_REACHED:
+      return "stop value reached";
+    case nlopt::FTOL_REACHED:
+      return "error tolerance reached";
+    case nlopt::XTOL_REACHED:
+      return "step tolerance reached";
+    case nlopt::MAXEVAL_REACHED:
+      return "simulation budget used";
+    case nlopt::MAXTIME_REACHED:
+      return "time limit reached";
+    default:
+      return "nlopt result " + std::to_string(static_cast<int>(r));
   }
 }
 
@@ -107,10 +121,10 @@ std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o
   // (both directions for BOBYQA): run those in parallel now, so that the optimizer finds
   // them in the objective's cache.
   std::vector<Eigen::VectorXd> first{s.x0};
-  if (o.jobs > 1 && (o.method == "bobyqa" || o.method == "cobyla")) {
+  if (o.jobs > 1 && (o.method == FitMethod::kBobyqa || o.method == FitMethod::kCobyla)) {
     for (int i = 0; i < n; ++i) {
       for (double sign : {1.0, -1.0}) {
-        if (sign < 0 && o.method == "cobyla") continue;
+        if (sign < 0 && o.method == FitMethod::kCobyla) continue;
         Eigen::VectorXd z = Eigen::VectorXd::Zero(n);
         z[i] = sign * step[i];
         if (z[i] >= s.zlo[i] && z[i] <= s.zhi[i]) first.push_back(s.x(z.data()));
@@ -124,11 +138,9 @@ std::string run_nlopt(Tracker& tr, const Scaling& s, const CalibrationOptions& o
     return e.ok ? e.mean_mm : tr.penalty();
   };
   using F = decltype(f);
-  opt.set_min_objective(
-      [](const std::vector<double>& z, std::vector<double>& g, void* data) {
-        return (*static_cast<F*>(data))(z, g);
-      },
-      &f);
+  opt.set_min_objective([](const std::vector<double>& z, std::vector<double>& g,
+                           void* data) { return (*static_cast<F*>(data))(z, g); },
+                        &f);
   std::vector<double> z(static_cast<size_t>(n), 0.0);
   double fmin = 0;
   try {
@@ -260,23 +272,69 @@ void fill_uncertainty(const Eigen::MatrixXd& J, double noise_mm, CalibrationResu
       const double d = std::sqrt(r->covariance(i, i) * r->covariance(j, j));
       r->correlation(i, j) = in_null[i] || in_null[j] || !(d > 0) ? kNaN : r->covariance(i, j) / d;
     }
-    r->identified[i] = !in_null[i] && i < static_cast<int>(r->specs.size()) &&
-                       r->sd[i] <= r->specs[i].scale;
+    r->identified[i] =
+        !in_null[i] && i < static_cast<int>(r->specs.size()) && r->sd[i] <= r->specs[i].scale;
   }
 }
 
-CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& o) {
-  if (o.method != "ceres") nlopt_algorithm(o.method);  // unknown names fail before any work
-  for (double d : o.restlength_scan)
-    if (!std::isfinite(d)) throw Error("calibrate: rest-length scan offsets must be finite");
-  if (!(o.jobs >= 1 && o.max_simulations >= 1 && o.step_tolerance > 0 &&
-        o.error_tolerance >= 0 && o.huber_mm > 0 && o.fd_step > 0)) {
-    throw Error("calibrate: jobs, budget, tolerances, Huber width and step must be positive");
+const char* fit_method_name(FitMethod m) {
+  switch (m) {
+    case FitMethod::kBobyqa:
+      return "bobyqa";
+    case FitMethod::kCobyla:
+      return "cobyla";
+    case FitMethod::kNelderMead:
+      return "neldermead";
+    case FitMethod::kSbplx:
+      return "sbplx";
+    case FitMethod::kCeres:
+      return "ceres";
   }
+  return "unknown";
+}
+
+std::optional<FitMethod> parse_fit_method(const std::string& name) {
+  for (int k = 0; k < kNumFitMethods; ++k) {
+    const auto m = static_cast<FitMethod>(k);
+    if (name == fit_method_name(m)) return m;
+  }
+  return std::nullopt;
+}
+
+std::map<std::string, FitMethod> fit_methods_by_name() {
+  std::map<std::string, FitMethod> m;
+  for (int k = 0; k < kNumFitMethods; ++k) {
+    const auto f = static_cast<FitMethod>(k);
+    m[fit_method_name(f)] = f;
+  }
+  return m;
+}
+
+bool CalibrationOptions::is_valid(std::string* error) const {
+  auto bad = [&](const char* m) {
+    *error = m;
+    return false;
+  };
+  if (static_cast<int>(method) < 0 || static_cast<int>(method) >= kNumFitMethods)
+    return bad("unknown fit method");
+  if (jobs < 1) return bad("jobs must be >= 1");
+  if (max_simulations < 1) return bad("max_simulations must be >= 1");
+  if (!(step_tolerance > 0)) return bad("step_tolerance must be positive");
+  if (!(error_tolerance >= 0)) return bad("error_tolerance must be >= 0");
+  if (!(huber_mm > 0)) return bad("huber_mm must be positive");
+  if (!(fd_step > 0)) return bad("fd_step must be positive");
+  for (double d : restlength_scan)
+    if (!std::isfinite(d)) return bad("rest-length scan offsets must be finite");
+  if (!std::isfinite(noise_mm)) return bad("noise_mm must be finite");
+  return true;
+}
+
+CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& o) {
+  if (std::string why; !o.is_valid(&why)) throw Error("calibrate: " + why);
   const auto t0 = std::chrono::steady_clock::now();
   const ParameterSpace& space = objective.space();
   CalibrationResult r;
-  r.method = o.method;
+  r.method = fit_method_name(o.method);
   r.specs = space.specs();
   Scaling s;
   s.x0 = space.start();
@@ -314,8 +372,9 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
   // The budget counts the simulations before the optimizer too, but leaves it at least a
   // start design's worth.
   const int budget = std::max(2 * space.size() + 2, o.max_simulations - objective.simulations());
-  r.termination = o.method == "ceres" ? run_ceres(tr, s, o, objective.num_residuals(), budget)
-                                      : run_nlopt(tr, s, o, budget);
+  r.termination = o.method == FitMethod::kCeres
+                      ? run_ceres(tr, s, o, objective.num_residuals(), budget)
+                      : run_nlopt(tr, s, o, budget);
   r.fitted = tr.best_x();
   r.error_after_mm = tr.best();
   r.parameters = space.apply(r.fitted);
@@ -336,7 +395,8 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
   Eigen::MatrixXd J = Eigen::MatrixXd::Zero(objective.num_residuals(), n);
   for (int i = 0; i < n; ++i)
     if (es[i].ok && best.ok) J.col(i) = (es[i].residuals - best.residuals) / h[i];
-  const double rms = best.ok ? std::sqrt(best.residuals.squaredNorm() / best.residuals.size()) : kNaN;
+  const double rms =
+      best.ok ? std::sqrt(best.residuals.squaredNorm() / best.residuals.size()) : kNaN;
   fill_uncertainty(J, o.noise_mm > 0 ? o.noise_mm : rms, &r);
 
   r.history = tr.history();
@@ -356,7 +416,7 @@ CalibrationRecord make_calibration_record(const CalibrationResult& r, const Pati
   c.synthetic = p.synthetic;
   c.provenance.seed = p.provenance.seed;
   c.options = forward::describe_options(sim);
-  c.options.emplace_back("fit_method", o.method);
+  c.options.emplace_back("fit_method", fit_method_name(o.method));
   c.options.emplace_back("fit_jobs", std::to_string(o.jobs));
   c.options.emplace_back("fit_max_simulations", std::to_string(o.max_simulations));
   c.options.emplace_back("fit_step_tolerance", std::to_string(o.step_tolerance));

@@ -95,10 +95,8 @@ bool CohortStudyOptions::is_valid(std::string* error) const {
   if (!observation.simulation.is_valid(&e)) return fail("cohort study: observation model: " + e);
   if (!(observation.noise_mm >= 0)) return fail("cohort study: observation noise must be >= 0 mm");
   if (!rating.is_valid(&e)) return fail("cohort study: " + e);
-  if (method != "bobyqa" && method != "cobyla" && method != "neldermead" && method != "sbplx" &&
-      method != "ceres")
-    return fail("cohort study: unknown method '" + method +
-                "' (bobyqa, cobyla, neldermead, sbplx, ceres)");
+  if (static_cast<int>(method) < 0 || static_cast<int>(method) >= inverse::kNumFitMethods)
+    return fail("cohort study: unknown fit method");
   return true;
 }
 
@@ -139,7 +137,7 @@ json CohortStudyOptions::config() const {
            {"unsatisfactory_orifice_mm2", rating.unsatisfactory_orifice_mm2}}}};
   if (calibrate)
     c.update({{"fit", fit},
-              {"method", method},
+              {"method", inverse::fit_method_name(method)},
               {"max_simulations", max_simulations},
               {"fit_model", describe(fit_model)}});
   if (folder.empty()) {
@@ -212,8 +210,7 @@ CohortPatient CohortPatient::from_json(const json& j) {
   p.error_calibrated_fit_model_mm = num(j, "error_calibrated_fit_model_mm");
   p.simulations = j.value("simulations", 0);
   p.failed_simulations = j.value("failed_simulations", 0);
-  p.failures_by_outcome =
-      j.value("failures_by_outcome", std::map<std::string, int>{});
+  p.failures_by_outcome = j.value("failures_by_outcome", std::map<std::string, int>{});
   p.termination = j.value("termination", "");
   p.noise_fit_mm = num(j, "noise_fit_mm");
   p.fitted = j.value("fitted", json::object());
@@ -538,7 +535,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       if (p.synthetic && o.folder.empty() && o.observation.noise_mm > 0)
         ratio.push_back(p.error_calibrated_mm / o.observation.noise_mm);
     }
-    result.summary["calibration"] = {{"method", o.method},
+    result.summary["calibration"] = {{"method", inverse::fit_method_name(o.method)},
                                      {"calibrated", calibrated},
                                      {"simulations", stats_json(sims)},
                                      {"failed_simulations", failed_sims},
@@ -721,7 +718,7 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
       " s. Error: symmetric point-to-mesh distance "
       "between the simulated and the observed closed leaflets (annulus row excluded), mm. " +
       (o.calibrate
-           ? "Calibration: " + o.fit + " by " + o.method + ", at most " +
+           ? "Calibration: " + o.fit + " by " + inverse::fit_method_name(o.method) + ", at most " +
                  std::to_string(o.max_simulations) + " simulations, searching with the " +
                  std::to_string(o.fit_model.model.ures) + " x " +
                  std::to_string(o.fit_model.model.vres) + " model (dt " +
@@ -804,7 +801,7 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
                           std::to_string(rr["identified"].get<int>()) + " identified (" +
                           std::to_string(rr["unidentified"].get<int>()) +
                           " not identified by the data)"});
-    rep.table({"", "mvtwin (" + o.method + ")"}, rows);
+    rep.table({"", std::string("mvtwin (") + inverse::fit_method_name(o.method) + ")"}, rows);
   }
   if (o.calibrate && !s["fitted_minus_truth_abs"].empty()) {
     rep.heading("Fitted parameters against the truth (virtual patients)");

@@ -179,7 +179,7 @@ TEST_F(StepSystem, ContactTangentInContact) {
   const double frictions[2] = {0.0, 0.5};
   for (int k = 0; k < 2; ++k) {
     ClosureOptions o = options_;
-    o.contact_friction = frictions[k];
+    o.contact.friction = frictions[k];
     ClosureIntegrator it(*scene_, o);
     it.set_terms({false, false, true, false});
     mismatch[k] = compare_with_finite_differences(&it, states_.back(), options_.dt, 5).relative;
@@ -228,12 +228,12 @@ TEST(ClosureTimeStep, ErrorFallsAtTheSchemesOrder) {
 #endif
   const Patient p = make_virtual_patient(1);
   ClosureOptions o = small_options();
-  o.pcg_tolerance = 1e-10;  // the scheme's error, not the linear solver's
-  o.stretch = 10.0;         // the paper's
+  o.solver.pcg_tolerance = 1e-10;  // the scheme's error, not the linear solver's
+  o.stretch = 10.0;                // the paper's
   // Without friction: lagged Coulomb friction makes the closed state depend on the path (the
   // leaflets stick where they first touch), and with it the end state differs by about 0.4 mm
   // RMS between dt = 0.01 and 0.00125 s on this model, at every step size (measured).
-  o.contact_friction = 0.0;
+  o.contact.friction = 0.0;
   const double coarsest = 0.02, finest = 0.00125;
   auto run = [&](double dt) {
     ClosureOptions q = o;
@@ -279,8 +279,19 @@ TEST(ClosureIntegratorApi, InvalidOptionsAndInitialVelocityAreRefused) {
   const Patient p = make_virtual_patient(2);
   ClosureOptions o = small_options();
   const ClosureScene scene = make_closure_scene(p.sequence, p.truth->parameters, o);
+  std::string why;
+  EXPECT_TRUE(ClosureOptions{}.is_valid(&why)) << why;  // one set of defaults, all valid
   o.dt = -1;
   EXPECT_THROW(ClosureIntegrator(scene, o), Error);
+  // The nested options are validated with the closure's.
+  o = small_options();
+  o.contact.alarm_mm = 0.1;  // below the contact distance
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("contact"), std::string::npos) << why;
+  o = small_options();
+  o.solver.pcg_max_iterations = 0;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("pcg_max_iterations"), std::string::npos) << why;
   o = small_options();
   o.initial_velocity = Eigen::VectorXd::Zero(7);
   ClosureIntegrator it(scene, o);

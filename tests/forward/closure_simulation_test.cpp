@@ -51,7 +51,7 @@ TEST(ClosureSimulation, EnergyDecaysUnderDampingWithNoLoad) {
   ClosureOptions o = small_options();
   o.annulus_motion = false;
   o.papillary_motion = false;
-  o.contact = false;
+  o.contact.enabled = false;
   o.record_every = 1;
   ValveParameters par = p.truth->parameters;
   par.peak_pressure_mpa = 0.0;
@@ -228,11 +228,11 @@ TEST(ClosureSimulation, WithoutTheContactWallFreeEdgesSinkIn) {
 #endif
   const Patient p = make_virtual_patient(1);
   ClosureOptions o = coarse_default_patient_options();
-  o.contact_wall_factor = 0.0;
+  o.contact.wall_factor = 0.0;
   const ClosureResult refused = simulate_closure(p.sequence, p.truth->parameters, o);
   EXPECT_EQ(refused.summary.outcome, Outcome::kLeafletCrossing) << refused.summary.reason;
   EXPECT_GT(refused.summary.crossings, 0);
-  o.contact_ccd = false;
+  o.contact.ccd = false;
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const ValveModel m = build_valve_model(p.sequence, o.model);

@@ -49,16 +49,19 @@ Plates make_plates(int n, double gap, double shift = 0.3) {
   return p;
 }
 
-SelfContact::Options options() {
-  SelfContact::Options o;
-  o.stiffness_per_area = 0.05;
+// Penalty stiffness per unit area (N/mm^3) and deepest pairing of the tests' contact.
+constexpr double kStiffness = 0.05, kMaxDepth = 0.6;
+
+SelfContactOptions options() {
+  SelfContactOptions o;
   o.friction = 0.0;
+  o.wall_factor = 0.0;  // the plain penalty unless a test asks for the wall
   return o;
 }
 
 TEST(SelfContact, PlatesWithinAlarmArePushedApart) {
   Plates p = make_plates(5, 0.4);
-  SelfContact c(p.surface, options());
+  SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
   const int found = c.detect(p.x);
   // Every vertex of each plate above/below the other plate's interior is in contact.
   EXPECT_GE(found, 2 * 9);
@@ -78,7 +81,7 @@ TEST(SelfContact, PlatesWithinAlarmArePushedApart) {
 
 TEST(SelfContact, ForceIsMinusEnergyGradient) {
   Plates p = make_plates(4, 0.35);
-  SelfContact c(p.surface, options());
+  SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
   ASSERT_GT(c.detect(p.x), 0);
   Eigen::VectorXd f = Eigen::VectorXd::Zero(p.x.size()), v = f;
   std::vector<Eigen::Triplet<double>> trip;
@@ -92,7 +95,8 @@ TEST(SelfContact, ForceIsMinusEnergyGradient) {
     xm[d] -= h;
     Eigen::VectorXd g = Eigen::VectorXd::Zero(p.x.size());
     std::vector<Eigen::Triplet<double>> t2;
-    SelfContact cp(p.surface, options()), cm(p.surface, options());
+    SelfContact cp(p.surface, options(), kStiffness, kMaxDepth),
+        cm(p.surface, options(), kStiffness, kMaxDepth);
     cp.detect(xp);
     cm.detect(xm);
     const double ep = cp.add(v, &g, &t2, 1, 1), em = cm.add(v, &g, &t2, 1, 1);
@@ -103,7 +107,7 @@ TEST(SelfContact, ForceIsMinusEnergyGradient) {
 
 TEST(SelfContact, FarPlatesSkipTheSearchUntilTheyApproach) {
   Plates p = make_plates(5, 6.0);
-  SelfContact c(p.surface, options());
+  SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
   EXPECT_EQ(c.detect(p.x), 0);
   EXPECT_EQ(c.searches(), 1);
   // Small motion: nothing can have come within reach, the search is skipped.
@@ -121,7 +125,7 @@ TEST(SelfContact, NeighboursInThePlaneAreExcluded) {
   Plates p = make_plates(5, 0.4);
   // Put the plates side by side in the plane: all within the exclusion distance.
   for (int id = 25; id < 50; ++id) p.surface.plane(id, 0) -= 100.0;
-  SelfContact c(p.surface, options());
+  SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
   EXPECT_EQ(c.detect(p.x), 0);
 }
 
@@ -134,8 +138,8 @@ TEST(SelfContact, NeighboursInThePlaneAreExcluded) {
 TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
   for (double dt : {1e-3}) {
     Plates p = make_plates(5, 1.5, 0.0);
-    SelfContact::Options o = options();
-    SelfContact c(p.surface, o);
+    SelfContactOptions o = options();
+    SelfContact c(p.surface, o, kStiffness, kMaxDepth);
     const double load = 0.01;  // N/mm^2 on 1 mm^2 per vertex
     const double mass = 1e-6, damping = 20.0;
     Eigen::VectorXd x = p.x, v = Eigen::VectorXd::Zero(x.size());
@@ -158,7 +162,7 @@ TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
       for (int i = 25; i < 50; ++i) x.segment<3>(3 * i) += dt * v.segment<3>(3 * i);
     }
     // Both plates' vertices push on the other's triangles: twice the stiffness of one pair.
-    const double expected = o.alarm_mm - load / (2.0 * o.stiffness_per_area);
+    const double expected = o.alarm_mm - load / (2.0 * kStiffness);
     for (int i = 25; i < 50; ++i) {
       EXPECT_NEAR(x[3 * i + 2], expected, 0.05) << "dt " << dt << " vertex " << i;
     }
@@ -170,14 +174,14 @@ TEST(SelfContact, PressedPlateRestsAtThePenaltyEquilibrium) {
 // is not.
 TEST(SelfContact, CrossingInOneStepIsCaught) {
   Plates p = make_plates(4, 1.0);
-  SelfContact c(p.surface, options());
+  SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
   c.detect(p.x);
   Eigen::VectorXd slow = p.x, slide = p.x, through = p.x, far_through = p.x;
   for (int i = 16; i < 32; ++i) {
-    slow[3 * i + 2] -= 0.5;          // to 0.5 mm: approaching, not crossing
-    slide[3 * i] += 0.4;             // sideways at 1 mm
-    through[3 * i + 2] -= 1.5;       // to -0.5 mm: through the lower plate
-    far_through[3 * i + 2] -= 9.0;   // far beyond: the candidate list does not cover it
+    slow[3 * i + 2] -= 0.5;         // to 0.5 mm: approaching, not crossing
+    slide[3 * i] += 0.4;            // sideways at 1 mm
+    through[3 * i + 2] -= 1.5;      // to -0.5 mm: through the lower plate
+    far_through[3 * i + 2] -= 9.0;  // far beyond: the candidate list does not cover it
   }
   EXPECT_EQ(c.find_crossing(p.x, slow), -1);
   EXPECT_EQ(c.find_crossing(p.x, slide), -1);
@@ -188,7 +192,7 @@ TEST(SelfContact, CrossingInOneStepIsCaught) {
   EXPECT_EQ(c.find_crossing(through, p.x), -1);
   // Plates far apart moving together: no crossing.
   Plates far = make_plates(4, 8.0);
-  SelfContact c2(far.surface, options());
+  SelfContact c2(far.surface, options(), kStiffness, kMaxDepth);
   c2.detect(far.x);
   Eigen::VectorXd moved = far.x;
   for (int i = 0; i < moved.size(); i += 3) moved[i] += 0.2;
@@ -197,10 +201,17 @@ TEST(SelfContact, CrossingInOneStepIsCaught) {
 
 TEST(SelfContact, BadOptions) {
   Plates p = make_plates(3, 1.0);
-  SelfContact::Options o = options();
+  SelfContactOptions o = options();
   o.alarm_mm = 0.2;
   o.contact_mm = 0.3;
-  EXPECT_THROW(SelfContact(p.surface, o), Error);
+  EXPECT_THROW(SelfContact(p.surface, o, kStiffness, kMaxDepth), Error);
+  EXPECT_THROW(SelfContact(p.surface, options(), -1.0, kMaxDepth), Error);
+  EXPECT_THROW(SelfContact(p.surface, options(), kStiffness, 0.0), Error);
+  o = options();
+  o.stiffness_factor = 0.5;  // below 1: the pressure would push vertices past the contact distance
+  std::string why;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("stiffness factor"), std::string::npos) << why;
 }
 
 // The contact law with its wall below the contact distance: continuous force, stiffness equal
@@ -208,9 +219,9 @@ TEST(SelfContact, BadOptions) {
 // k at zero distance; nothing beyond the alarm distance.
 TEST(SelfContact, WallLawIsC1AndItsStiffnessIsTheForceDerivative) {
   Plates p = make_plates(3, 1.0);
-  SelfContact::Options o = options();
+  SelfContactOptions o = options();
   o.wall_factor = 50.0;
-  const SelfContact c(p.surface, o);
+  const SelfContact c(p.surface, o, kStiffness, kMaxDepth);
   const double k = 2.0;
   double f, kf, fp, kp, fm, km;
   for (double d : {0.7, 0.59, 0.45, 0.31, 0.3, 0.29, 0.1, 0.0, -0.2}) {
@@ -236,10 +247,10 @@ TEST(SelfContact, WallLawIsC1AndItsStiffnessIsTheForceDerivative) {
 // minus the energy gradient with the wall active (plates closer than the contact distance).
 TEST(SelfContact, TangentProductDiagonalBlocksAndForcesAgree) {
   Plates p = make_plates(4, 0.2);
-  SelfContact::Options o = options();
+  SelfContactOptions o = options();
   o.wall_factor = 30.0;
   o.friction = 0.5;
-  SelfContact c(p.surface, o);
+  SelfContact c(p.surface, o, kStiffness, kMaxDepth);
   ASSERT_GT(c.detect(p.x), 0);
   Eigen::VectorXd v = Eigen::VectorXd::Zero(p.x.size());
   for (int i = 0; i < v.size(); ++i) v[i] = std::sin(1.3 * i);  // tangential slip: friction on
@@ -279,7 +290,7 @@ TEST(SelfContact, TangentProductDiagonalBlocksAndForcesAgree) {
 
   // Forces = -grad energy with the wall active (no friction for this check).
   o.friction = 0.0;
-  SelfContact c0(p.surface, o);
+  SelfContact c0(p.surface, o, kStiffness, kMaxDepth);
   c0.detect(p.x);
   Eigen::VectorXd f0 = Eigen::VectorXd::Zero(p.x.size()), zero = f0;
   const double e0 = c0.add_forces(zero, &f0);
@@ -290,7 +301,7 @@ TEST(SelfContact, TangentProductDiagonalBlocksAndForcesAgree) {
     Eigen::VectorXd xp = p.x, xm = p.x;
     xp[d] += h;
     xm[d] -= h;
-    SelfContact cp(p.surface, o), cm(p.surface, o);
+    SelfContact cp(p.surface, o, kStiffness, kMaxDepth), cm(p.surface, o, kStiffness, kMaxDepth);
     cp.detect(xp);
     cm.detect(xm);
     Eigen::VectorXd g = zero;
@@ -305,11 +316,11 @@ TEST(SelfContact, TangentProductDiagonalBlocksAndForcesAgree) {
 // the load (solved here by bisection); without it, it would rest through the other plate.
 TEST(SelfContact, WallHoldsALoadThePenaltyAloneCannot) {
   Plates p = make_plates(5, 1.5, 0.0);
-  SelfContact::Options o = options();
+  SelfContactOptions o = options();
   o.wall_factor = 100.0;
-  SelfContact c(p.surface, o);
+  SelfContact c(p.surface, o, kStiffness, kMaxDepth);
   const double load = 0.1;  // N per vertex: the plain law would balance it at d = 0.6 - 1 mm
-  ASSERT_LT(o.alarm_mm - load / (2.0 * o.stiffness_per_area), 0.0);
+  ASSERT_LT(o.alarm_mm - load / (2.0 * kStiffness), 0.0);
   // Overdamped (terminal speed load / (damping mass) = 10 mm/s): a slow approach, as the
   // valve's stiffness-proportional damping makes it.
   const double dt = 1e-3, mass = 1e-6, damping = 1e4;
@@ -338,7 +349,7 @@ TEST(SelfContact, WallHoldsALoadThePenaltyAloneCannot) {
   for (int it = 0; it < 100; ++it) {
     const double mid = 0.5 * (lo + hi);
     double f, k;
-    c.law(mid, o.stiffness_per_area, &f, &k);
+    c.law(mid, kStiffness, &f, &k);
     (2.0 * f > load ? lo : hi) = mid;
   }
   EXPECT_GT(lo, 0.0);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "mvtwin/core/error.h"
 #include "mvtwin/core/rng.h"
 
 namespace mvtwin::forward {
@@ -28,8 +29,10 @@ Eigen::SparseMatrix<double> laplacian(int n, double shift) {
 class StepSolverTest : public ::testing::TestWithParam<LinearSolver> {};
 
 TEST_P(StepSolverTest, SolvesASequenceOfSystems) {
-  StepSolver::Options o;
+  StepSolverOptions o;
   o.kind = GetParam();
+  o.pcg_tolerance = 1e-8;
+  o.refactor_iterations = 8;
   StepSolver s(o);
   Rng rng(3);
   Eigen::VectorXd b(900);
@@ -51,7 +54,7 @@ TEST_P(StepSolverTest, SolvesASequenceOfSystems) {
 }
 
 TEST_P(StepSolverTest, IndefiniteMatrixFailsWithAReason) {
-  StepSolver::Options o;
+  StepSolverOptions o;
   o.kind = GetParam();
   StepSolver s(o);
   const Eigen::SparseMatrix<double> A = laplacian(10, -10.0);
@@ -91,7 +94,7 @@ TEST(StepSolver, SinglePrecisionPreconditionerReachesTheTolerance) {
   const Eigen::SparseMatrix<double> A = laplacian(50, 0.05);
   Eigen::VectorXd xs, xd;
   std::string why;
-  StepSolver::Options o;
+  StepSolverOptions o;
   o.kind = LinearSolver::kCholmodSupernodal;
   o.pcg_tolerance = 1e-10;
   o.single_precision_preconditioner = true;
@@ -105,6 +108,20 @@ TEST(StepSolver, SinglePrecisionPreconditionerReachesTheTolerance) {
   EXPECT_GT(single.stats().pcg_iterations, 0);  // float rounding needs a few iterations ...
   EXPECT_LT(single.stats().pcg_iterations, 8);  // ... but only a few
   EXPECT_EQ(dbl.stats().pcg_iterations, 0);     // the double factor solves it outright
+}
+
+TEST(StepSolver, InvalidOptionsAreRefusedNamingTheField) {
+  StepSolverOptions o;
+  std::string why;
+  EXPECT_TRUE(o.is_valid(&why)) << why;  // the defaults are valid
+  o.pcg_tolerance = 0.0;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("pcg_tolerance"), std::string::npos) << why;
+  EXPECT_THROW(StepSolver{o}, Error);
+  o = StepSolverOptions{};
+  o.refactor_iterations = 0;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("refactor_iterations"), std::string::npos) << why;
 }
 
 TEST(StepSolver, NamesRoundTrip) {

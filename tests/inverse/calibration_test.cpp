@@ -65,7 +65,7 @@ TEST(ClosureObjective, CompareOfASimulationGivesEvaluatesDistances) {
   ASSERT_TRUE(b.ok) << b.reason;
   EXPECT_EQ(a.residuals.size(), b.residuals.size());
   EXPECT_EQ(a.residuals, b.residuals);  // simulations repeat bit for bit
-  EXPECT_EQ(obj.simulations(), 1);       // compare is not counted
+  EXPECT_EQ(obj.simulations(), 1);      // compare is not counted
   // A failed simulation is a failed comparison, with its reason.
   forward::ClosureResult failed = obj.simulate(x);
   failed.summary.outcome = Outcome::kInvertedElement;
@@ -138,8 +138,8 @@ TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
   EXPECT_LT(at_truth.mean_mm, r.error_before_mm);
   EXPECT_LE(r.error_after_mm, at_truth.mean_mm + 0.02);
   for (int i = 0; i < 2; ++i)
-    EXPECT_NEAR(r.fitted[i], truth[i], 0.03) << obj.space().specs()[i].name << ", started at "
-                                             << r.start[i];
+    EXPECT_NEAR(r.fitted[i], truth[i], 0.03)
+        << obj.space().specs()[i].name << ", started at " << r.start[i];
 }
 
 TEST(Calibration, RestLengthScanReachesElongatedChordae) {
@@ -156,7 +156,8 @@ TEST(Calibration, RestLengthScanReachesElongatedChordae) {
   p.truth->parameters.restlength_factor[2] = 1.32;
   observe_with_the_calibration_model(&p);
   const std::string marginal = marginal_restlengths();
-  ClosureObjective obj(p, ParameterSpace(marginal + ",peak_pressure", ValveParameters{}), small_model());
+  ClosureObjective obj(p, ParameterSpace(marginal + ",peak_pressure", ValveParameters{}),
+                       small_model());
   const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
   CalibrationOptions co;
   co.max_simulations = 30;
@@ -220,20 +221,32 @@ TEST(Calibration, CeresFitsToo) {
   const Patient& p = observed_patient();
   ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
   CalibrationOptions co;
-  co.method = "ceres";
+  co.method = FitMethod::kCeres;
   co.max_simulations = 15;
   const CalibrationResult r = calibrate(obj, co);
   EXPECT_LT(r.error_after_mm, r.error_before_mm);
   EXPECT_NE(r.termination.find("ceres"), std::string::npos);
 }
 
-TEST(Calibration, UnknownMethodIsNamed) {
+TEST(Calibration, MethodsByNameAndInvalidOptionsAreRefusedBeforeAnyWork) {
+  for (int k = 0; k < kNumFitMethods; ++k) {
+    const auto m = static_cast<FitMethod>(k);
+    EXPECT_EQ(parse_fit_method(fit_method_name(m)), m);
+  }
+  EXPECT_FALSE(parse_fit_method("newuoa-typo").has_value());
+  EXPECT_EQ(fit_methods_by_name().size(), static_cast<size_t>(kNumFitMethods));
   Patient p = make_virtual_patient(3);  // the open valve as a stand-in observation: no closure
   p.sequence.frames[p.sequence.first_closed].la_surface =
       p.sequence.frames[p.sequence.end_diastole].la_surface;
   ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
   CalibrationOptions co;
-  co.method = "newuoa-typo";
+  co.jobs = 0;
+  std::string why;
+  EXPECT_FALSE(co.is_valid(&why));
+  EXPECT_NE(why.find("jobs"), std::string::npos) << why;
+  EXPECT_THROW(calibrate(obj, co), Error);
+  co = CalibrationOptions{};
+  co.restlength_scan = {0.1, std::nan("")};
   EXPECT_THROW(calibrate(obj, co), Error);
   EXPECT_EQ(obj.simulations(), 0);
 }

@@ -21,8 +21,6 @@ class Rng {
   double normal(double mean = 0.0, double sd = 1.0);
   /// Normal(mean, sd) truncated to [lo, hi] by rejection (falls back to clamping).
   double truncated_normal(double mean, double sd, double lo, double hi);
-  /// A derived seed for an independent stream (e.g. patient i of a cohort).
-  std::uint64_t next_seed() { return engine_(); }
 
  private:
   std::mt19937_64 engine_;

@@ -6,10 +6,11 @@
 #include <Eigen/Core>
 
 #include "mvtwin/core/outcome.h"
-#include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/simulation_file.h"
+#include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/elastic_body.h"
+#include "mvtwin/forward/self_contact.h"
 #include "mvtwin/forward/step_solver.h"
 #include "mvtwin/forward/valve_model.h"
 
@@ -38,36 +39,14 @@ struct ClosureOptions {
   /// velocity update is below newton_tolerance (mm/s, infinity norm).
   int newton_iterations = 1;
   double newton_tolerance = 1e-6;
-  /// Linear solver of each step and, for kReusedFactorPcg, its relative tolerance, the
-  /// iteration cap (then: refactorize) and the iteration count that makes the next step
-  /// refactorize (StepSolver). The step matrix is the warped co-rotational tangent R K0 R^T.
-  LinearSolver solver = LinearSolver::kReusedFactorPcg;
-  double pcg_tolerance = 0.1;
-  int pcg_max_iterations = 25;
-  int refactor_iterations = 3;
-  /// kReusedFactorPcg: precondition with the last factorization rotated by each node's
-  /// rotation since (StepSolver::System::rotate).
-  bool rotated_preconditioner = true;
-  /// Apply the factorization in single precision (StepSolver::Options).
-  bool single_precision_preconditioner = true;
+  /// The linear solver of each step (its defaults are the simulation's). The step matrix is
+  /// the warped co-rotational tangent (ClosureIntegrator).
+  StepSolverOptions solver;
   /// Prescribed boundary motion from the images; off = held at end-diastole (sensitivity).
   bool annulus_motion = true;
   bool papillary_motion = true;
-  /// Leaflet self-contact (SPEC Sec. 4); off for sensitivity studies and the phantom's open
-  /// frames. The penalty stiffness per unit area is contact_stiffness_factor x peak pressure /
-  /// (alarm - contact distance), so the peak pressure alone holds a vertex at
-  /// alarm - (alarm - contact) / factor.
-  bool contact = true;
-  double contact_alarm_mm = 0.6;
-  double contact_distance_mm = 0.3;
-  double contact_friction = 0.5;
-  double contact_stiffness_factor = 2.0;
-  /// Below the contact distance the contact stiffness grows to (1 + wall factor) x its value at
-  /// zero distance (SelfContact), so that edge-on loads do not push free edges through.
-  double contact_wall_factor = 100.0;
-  /// Continuous collision detection at the end of every step (SelfContact::find_crossing): a
-  /// step that carries a vertex through a leaflet surface is retried with half the step.
-  bool contact_ccd = true;
+  /// Leaflet self-contact (Mansi et al. 2012, Sec. 2.3).
+  SelfContactOptions contact;
   /// Inversion guard: volumetric barrier below this det F of an element's corner tetrahedron
   /// (ElasticBody::set_inversion_guard; 0 = off).
   double inversion_guard = 0.2;
@@ -97,19 +76,19 @@ struct ClosureSummary {
   Outcome outcome = Outcome::kInvalidInput;
   std::string reason;  ///< why it failed, naming the element, node or time; empty on success
   bool converged() const { return outcome == Outcome::kConverged; }
-  int steps = 0;       ///< steps taken (after halvings)
-  int halvings = 0;    ///< step retries with a halved step
-  int crossings = 0;   ///< steps rejected by continuous collision detection (then halved)
+  int steps = 0;      ///< steps taken (after halvings)
+  int halvings = 0;   ///< step retries with a halved step
+  int crossings = 0;  ///< steps rejected by continuous collision detection (then halved)
   int newton_iterations = 0;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;
-  int contacts = 0;           ///< vertex-triangle pairs in contact at the end
-  int max_contacts = 0;       ///< most pairs at once
-  int contact_searches = 0;   ///< proximity searches done
+  int contacts = 0;          ///< vertex-triangle pairs in contact at the end
+  int max_contacts = 0;      ///< most pairs at once
+  int contact_searches = 0;  ///< proximity searches done
   /// Smallest signed vertex-surface distance of a contact pair at the end, mm (negative: a
   /// vertex is through a surface); infinity without contact.
   double min_contact_distance_mm = 0;
-  int contact_reused = 0;     ///< detections that reused the candidate list (no search)
+  int contact_reused = 0;        ///< detections that reused the candidate list (no search)
   double final_update_norm = 0;  ///< last velocity update, mm/s
   /// Surface nodes of one leaflet inside the other at the end (forward/interpenetration.h), of
   /// the nodes checked.
@@ -117,10 +96,10 @@ struct ClosureSummary {
   /// Elements compressed below the inversion guard's threshold at the last linearization.
   int guarded_elements = 0;
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
-  int pcg_fallbacks = 0;        ///< PCG solves that gave up and factorized
-  int unconverged_solves = 0;   ///< solves left above pcg_tolerance after a fresh factorization
-  double factorize_s = 0;       ///< part of solve_s spent in factorizations
-  double matrix_assembly_s = 0; ///< part of assembly_s spent assembling the step matrix
+  int pcg_fallbacks = 0;         ///< PCG solves that gave up and factorized
+  int unconverged_solves = 0;    ///< solves left above pcg_tolerance after a fresh factorization
+  double factorize_s = 0;        ///< part of solve_s spent in factorizations
+  double matrix_assembly_s = 0;  ///< part of assembly_s spent assembling the step matrix
 
   std::string brief_report() const;
 };

@@ -1,5 +1,6 @@
 #pragma once
 #include <array>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -10,6 +11,32 @@
 #include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
+
+/// Options of leaflet self-contact (SelfContact) in a closure simulation, with its defaults
+/// (Mansi et al. 2012, Sec. 2.3: alarm distance 0.6 mm, contact distance 0.3 mm, friction 0.5).
+struct SelfContactOptions {
+  bool enabled = true;  ///< off for sensitivity studies and the phantom's open frames
+  double alarm_mm = 0.6;
+  double contact_mm = 0.3;  ///< the contact (minimum) distance
+  double friction = 0.5;
+  double friction_slip_mm_per_s = 1.0;  ///< Coulomb friction is regularized below this slip
+  /// Penalty stiffness per unit area = stiffness_factor x peak pressure / (alarm - contact), so
+  /// that the peak pressure alone holds a vertex at alarm - (alarm - contact) / factor.
+  double stiffness_factor = 2.0;
+  /// Below the contact distance the stiffness grows to (1 + wall_factor) x its value at zero
+  /// distance (see SelfContact), so that edge-on loads do not push free edges through.
+  double wall_factor = 100.0;
+  /// Continuous collision detection at the end of every step (SelfContact::find_crossing): a
+  /// step that carries a vertex through a leaflet surface is retried with half the step.
+  bool ccd = true;
+  double exclusion_mm = 4.0;  ///< surface neighbours closer than this (unrolled) never pair
+  double margin_mm = 1.5;     ///< Verlet margin of the candidate list
+
+  bool is_valid(std::string* error) const;
+  /// The penalty stiffness per unit area (N/mm^3) for a closure at peak pressure p (MPa; at
+  /// least 10 mmHg is assumed, so that an unloaded valve still has contact).
+  double stiffness_per_area(double peak_pressure_mpa) const;
+};
 
 /// Leaflet self-contact by vertex-triangle penalties (SPEC Sec. 4: alarm distance 0.6 mm,
 /// contact (minimum) distance 0.3 mm, friction 0.5).
@@ -42,26 +69,13 @@ namespace mvtwin::forward {
 /// apart the list is empty and a step costs one displacement check.
 class SelfContact {
  public:
-  struct Options {
-    double alarm_mm = 0.6;
-    double contact_mm = 0.3;
-    double friction = 0.5;
-    double friction_slip_mm_per_s = 1.0;
-    double stiffness_per_area = 0.0;  ///< N/mm^3 (MPa/mm); set by the simulation from pressure
-    double wall_factor = 0.0;  ///< extra stiffness below the contact distance (see above)
-    double exclusion_mm = 4.0;
-    double margin_mm = 1.5;
-    /// A vertex over a face on its inner side deeper than this is left to the leaflet's other
-    /// face (set it to about half the leaflet thickness).
-    double max_depth_mm = 0.6;
-  };
   struct Pair {
-    int vertex;                ///< node index
-    std::array<int, 3> tri;    ///< node indices
-    Eigen::Vector3d weights;   ///< barycentric weights of the closest point
-    Eigen::Vector3d normal;    ///< direction that separates them (on the vertex's side)
-    double distance;           ///< signed: negative once the vertex is through the triangle
-    double area;               ///< surface area the vertex stands for, mm^2
+    int vertex;               ///< node index
+    std::array<int, 3> tri;   ///< node indices
+    Eigen::Vector3d weights;  ///< barycentric weights of the closest point
+    Eigen::Vector3d normal;   ///< direction that separates them (on the vertex's side)
+    double distance;          ///< signed: negative once the vertex is through the triangle
+    double area;              ///< surface area the vertex stands for, mm^2
     // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
     // (N s/mm) and the tangential slip direction's projector is I - n n^T.
     double force = 0, stiffness = 0, eta = 0;
@@ -88,7 +102,12 @@ class SelfContact {
   /// The atrial and ventricular surfaces of a valve model.
   static Surface valve_surface(const ValveModel& model);
 
-  SelfContact(Surface surface, const Options& options);
+  /// stiffness_per_area: N/mm^3 (SelfContactOptions::stiffness_per_area for a closure);
+  /// max_depth_mm: a vertex over a face on its inner side deeper than this is left to the
+  /// leaflet's other face (about half the leaflet thickness). Throws mvtwin::Error for invalid
+  /// options or surface arrays of different sizes.
+  SelfContact(Surface surface, const SelfContactOptions& options, double stiffness_per_area,
+              double max_depth_mm);
 
   /// Updates the active pairs at positions x (all nodes, flattened). Returns the number of
   /// pairs within the alarm distance.
@@ -98,11 +117,11 @@ class SelfContact {
   double add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f);
   /// y += (scale_k K + scale_c D) p over all nodes' dofs, with every coupling (K: Gauss-Newton
   /// contact stiffness, D: friction damping, at the last add_forces()).
-  void multiply(const Eigen::VectorXd& p, double scale_k, double scale_c,
-                Eigen::VectorXd* y) const;
+  void multiply(const Eigen::VectorXd& p, double scale_k, double scale_c, Eigen::VectorXd* y) const;
   /// Adds the node-diagonal 3x3 blocks of scale_k K + scale_c D to A.
   void add_diagonal_blocks(double scale_k, double scale_c, SymmetricBlockMatrix* A) const;
-  /// add_forces() and, as triplets over node dofs, scale_k K + scale_c D with every coupling.
+  /// add_forces() and, as triplets over node dofs, scale_k K + scale_c D with every coupling
+  /// (the whole matrix, for tests; the simulation uses multiply and add_diagonal_blocks).
   double add(const Eigen::VectorXd& v, Eigen::VectorXd* f,
              std::vector<Eigen::Triplet<double>>* triplets, double scale_k, double scale_c);
   /// Normal force (N) and stiffness (N/mm) of the law above at distance d for pair stiffness k.
@@ -126,15 +145,16 @@ class SelfContact {
  private:
   void full_search(const Eigen::VectorXd& x);
 
-  Options opt_;
+  SelfContactOptions opt_;
+  double stiffness_per_area_ = 0.0, max_depth_mm_ = 0.0;
   Surface s_;
   std::vector<Pair> pairs_;
   struct Candidate {
     int vertex;  // index into the surface's vertices
     int triangle;
   };
-  std::vector<Candidate> candidates_;            // by vertex
-  Eigen::VectorXd x_search_;                     // positions at the last full search
+  std::vector<Candidate> candidates_;  // by vertex
+  Eigen::VectorXd x_search_;           // positions at the last full search
   int searches_ = 0, reused_ = 0;
   double min_distance_ = 0.0;
 };

@@ -22,6 +22,26 @@ const char* name(LinearSolver s);
 /// Parses a solver name (as printed by name()); false if unknown.
 bool parse_linear_solver(const std::string& text, LinearSolver* out);
 
+/// Options of the step solver, with the closure simulation's defaults: conjugate gradients to a
+/// loose relative tolerance, preconditioned by a factorization reused over steps (measured in
+/// `mvtwin bench solvers`: the cheapest at the error the closure tolerates).
+struct StepSolverOptions {
+  LinearSolver kind = LinearSolver::kReusedFactorPcg;
+  /// Relative residual CG solves to (every kind: the direct kinds then iterate only over the
+  /// terms their factorization leaves out).
+  double pcg_tolerance = 0.1;
+  int pcg_max_iterations = 25;  ///< beyond this, refactorize and solve again
+  int refactor_iterations = 3;  ///< a solve this long makes the next one refactorize
+  /// Supernodal kinds: apply the factorization as the preconditioner from a single-precision
+  /// copy (half the memory traffic of the memory-bound triangular solves; CG on the exact
+  /// double-precision operator still reaches any tolerance).
+  bool single_precision_preconditioner = true;
+  /// Use System::rotate when the system has one (rotated preconditioner, see System).
+  bool rotated_preconditioner = true;
+
+  bool is_valid(std::string* error) const;
+};
+
 /// Solves the symmetric positive definite systems of a time integration, one after another. The
 /// symbolic analysis is reused while the sparsity pattern stays the same.
 ///
@@ -38,16 +58,6 @@ bool parse_linear_solver(const std::string& text, LinearSolver* out);
 /// core, and on two cores its threads only contend (measured: 2.2x slower factorizations).
 class StepSolver {
  public:
-  struct Options {
-    LinearSolver kind = LinearSolver::kCholmodSupernodal;
-    double pcg_tolerance = 1e-8;  ///< relative residual for kReusedFactorPcg
-    int pcg_max_iterations = 25;  ///< beyond this, refactorize and solve directly
-    int refactor_iterations = 8;  ///< a solve this long makes the next one refactorize
-    /// Supernodal kinds: apply the factorization as the preconditioner from a single-precision
-    /// copy (half the memory traffic of the memory-bound triangular solves; CG on the exact
-    /// double-precision operator still reaches any tolerance).
-    bool single_precision_preconditioner = true;
-  };
   struct Stats {
     int analyses = 0, factorizations = 0, solves = 0, pcg_iterations = 0, pcg_fallbacks = 0;
     int unconverged = 0;  ///< solves that kept CG's last iterate after a fresh factorization
@@ -66,7 +76,8 @@ class StepSolver {
     std::function<void(Eigen::VectorXd* v, bool transpose)> rotate;
   };
 
-  explicit StepSolver(const Options& options);
+  /// Throws mvtwin::Error for invalid options.
+  explicit StepSolver(const StepSolverOptions& options);
   ~StepSolver();
   StepSolver(const StepSolver&) = delete;
   StepSolver& operator=(const StepSolver&) = delete;
@@ -76,16 +87,13 @@ class StepSolver {
   /// The same for a full (both triangles) symmetric matrix.
   bool solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
              std::string* why);
-  /// Makes the next solve factorize (e.g. after the operator changed abruptly).
-  void invalidate();
   const Stats& stats() const { return stats_; }
 
  private:
   bool factorize(const System& A, std::string* why);
-
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  Options opt_;
+  StepSolverOptions opt_;
   Stats stats_;
 };
 

@@ -1,6 +1,7 @@
 #pragma once
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -11,12 +12,26 @@
 
 namespace mvtwin::inverse {
 
+/// The optimizer of a calibration.
+enum class FitMethod {
+  kBobyqa,      ///< NLopt BOBYQA (derivative-free, quadratic models; the default)
+  kCobyla,      ///< NLopt COBYLA (derivative-free, linear models)
+  kNelderMead,  ///< NLopt Nelder-Mead simplex
+  kSbplx,       ///< NLopt Sbplx (subspace simplex)
+  kCeres,       ///< Ceres Levenberg-Marquardt: finite-difference Jacobian whose perturbed
+                ///< simulations run in parallel, robust Huber loss
+};
+inline constexpr int kNumFitMethods = 5;
+/// "bobyqa", "cobyla", "neldermead", "sbplx", "ceres".
+const char* fit_method_name(FitMethod m);
+/// The method named by fit_method_name(); nullopt for an unknown name.
+std::optional<FitMethod> parse_fit_method(const std::string& name);
+/// Every method by name (for the command line's choices).
+std::map<std::string, FitMethod> fit_methods_by_name();
+
 struct CalibrationOptions {
-  /// "bobyqa" (NLopt, default), "cobyla", "neldermead", "sbplx" (NLopt, derivative-free), or
-  /// "ceres" (Levenberg-Marquardt, finite-difference Jacobian whose perturbed simulations run
-  /// in parallel, robust Huber loss).
-  std::string method = "bobyqa";
-  int jobs = 2;                 ///< simulations at once (TBB)
+  FitMethod method = FitMethod::kBobyqa;
+  int jobs = 2;  ///< simulations at once (TBB)
   /// Budget up to the fit: the start, the rest-length scan, then the optimizer (NLopt: its
   /// evaluations; Ceres: iterations x (n + 1)); 50 fits 7 parameters in about 45 s here.
   int max_simulations = 50;
@@ -37,12 +52,14 @@ struct CalibrationOptions {
   double noise_mm = 0.0;
   /// Called after every improvement and every iteration.
   std::function<void(int iteration, double best_mm, int simulations)> progress;
+
+  bool is_valid(std::string* error) const;
 };
 
 struct HistoryEntry {
-  int simulation = 0;       ///< simulations run so far
-  double error_mm = 0;      ///< this candidate's mean error (NaN when it failed)
-  double best_mm = 0;       ///< best so far
+  int simulation = 0;   ///< simulations run so far
+  double error_mm = 0;  ///< this candidate's mean error (NaN when it failed)
+  double best_mm = 0;   ///< best so far
   Eigen::VectorXd x;
 };
 
@@ -70,7 +87,7 @@ struct CalibrationResult {
 
 /// Fits the objective's parameters. Failed candidate simulations are counted and penalized
 /// (NLopt) or rejected (Ceres: the step is refused); they never end the fit. Throws
-/// mvtwin::Error for an unknown method or when the start point itself cannot be simulated.
+/// mvtwin::Error for invalid options or when the start point itself cannot be simulated.
 CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOptions& options = {});
 
 /// Covariance of the fit from the Jacobian of the residuals (n columns, user units) and the

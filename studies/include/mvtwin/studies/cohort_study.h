@@ -13,6 +13,7 @@
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/virtual_closure.h"
+#include "mvtwin/inverse/calibration.h"
 #include "mvtwin/studies/study_folder.h"
 #include "mvtwin/studies/work_pool.h"
 
@@ -59,7 +60,7 @@ struct CohortStudyOptions {
   ValveParameters defaults;  ///< the default parameters (the start)
   bool calibrate = true;
   std::string fit = "restlength,stiffness,pressure";
-  std::string method = "bobyqa";
+  inverse::FitMethod method = inverse::FitMethod::kBobyqa;
   int max_simulations = 50;
   /// A fitted rest-length factor within this of the truth counts as recovered (the summary's
   /// `restlength_recovery`, over the factors the data identify).
