@@ -53,7 +53,6 @@ struct Run {
 
 Run run(const Patient& p, forward::ClosureOptions o) {
   Run r;
-  o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   r.result = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   r.wall_s = r.result.summary.wall_s;
   return r;
@@ -126,7 +125,6 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
                "keeps it) ..."
             << std::endl;
   forward::ClosureOptions o = ro;
-  o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   o.progress = progress_line("  reference");
   const forward::ClosureResult r = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   std::cout << r.summary.brief_report() << "\n";

@@ -205,7 +205,6 @@ void register_clip(CLI::App& app, Context& ctx) {
         const auto& best = clipped.front();
         forward::ClosureOptions oc = o;
         for (const auto& s : best.sites) oc.clips.push_back(inverse::clip_options(s));
-        if (p.truth) oc.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
         oc.record_every = std::max(1, static_cast<int>(0.1 / oc.dt));
         oc.progress = progress_line("  clipped closure");
         const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, oc);

@@ -153,6 +153,11 @@ void print_info(const Patient& p, std::ostream& os) {
   };
   frame_report(s.end_diastole, "end-diastole");
   frame_report(s.first_closed, "first closed");
+  for (const ChordaeRupture& r : s.ruptured_chordae) {
+    os << "chordae   ruptured: the marginal chordae inserting at s in [" << fmt(r.s_begin, 3)
+       << ", " << fmt(r.s_end, 3) << ") (" << (r.s_end <= 0.5 ? "anterior" : r.s_begin >= 0.5 ? "posterior" : "both")
+       << " leaflet)\n";
+  }
   if (s.end_diastole < 0 && s.first_closed < 0) frame_report(0, "frame 0");
   if (!p.images.empty()) {
     const auto& im = p.images.front();
@@ -172,11 +177,6 @@ void print_info(const Patient& p, std::ostream& os) {
       }
     });
     os << "\n";
-    if (!t.ruptured_marginal_chordae.empty()) {
-      os << "          ruptured marginal chordae:";
-      for (int k : t.ruptured_marginal_chordae) os << " " << k;
-      os << "\n";
-    }
     os << "closed    " << t.closed_frames << "\n";
   }
 }
@@ -516,10 +516,7 @@ void register_commands(CLI::App& app, Context& ctx) {
         const Patient p = read_patient(*file, false);
         forward::ClosureOptions o = *opts;
         ValveParameters par;
-        if (p.truth) {
-          par = p.truth->parameters;
-          o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
-        }
+        if (p.truth) par = p.truth->parameters;
         for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
         const forward::ClosureScene scene = forward::make_closure_scene(p.sequence, par, o);
         std::ostringstream comment;
@@ -593,10 +590,7 @@ void register_commands(CLI::App& app, Context& ctx) {
         o.contact.enabled = !*no_contact;
         o.newton_iterations = *newton;
         ValveParameters par;
-        if (p.truth) {
-          par = p.truth->parameters;
-          o.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
-        }
+        if (p.truth) par = p.truth->parameters;
         for (const std::string& a : *sets) forward::apply_setting(a, &o, &par);
         if (o.record_every == 0) o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
         if (!out->empty()) refuse_overwrite(*out, *force);

@@ -170,6 +170,11 @@ void register_import(CLI::App& app, Context& ctx) {
   cmd->add_option("--vres", opt->fit.vres, "grid points from annulus to free edge (>= 3)")
       ->default_val(30);
   cmd->add_option("--id", opt->id, "patient identifier (default: the first file's name)");
+  auto ruptures = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("--ruptured-chordae", *ruptures,
+                  "torn marginal chordae seen in the images, S0:S1 (grid coordinate s around the "
+                  "annulus from the anterolateral commissure, anterior leaflet below 0.5); "
+                  "repeatable");
   cmd->add_option("--json", *json_out, "also write the fit report as JSON");
   cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
   cmd->add_flag("--force", *force, "replace an existing file");
@@ -182,6 +187,20 @@ void register_import(CLI::App& app, Context& ctx) {
       refuse_overwrite_path(*out, *force);
       if (!json_out->empty()) refuse_overwrite_path(*json_out, *force);
       detection::PatientImportOptions o = *opt;
+      for (const std::string& r : *ruptures) {
+        const auto colon = r.find(':');
+        double s0 = 0, s1 = 0;
+        try {
+          if (colon == std::string::npos) throw std::invalid_argument(r);
+          size_t used0 = 0, used1 = 0;
+          s0 = std::stod(r.substr(0, colon), &used0);
+          s1 = std::stod(r.substr(colon + 1), &used1);
+          if (used0 != colon || used1 != r.size() - colon - 1) throw std::invalid_argument(r);
+        } catch (const std::exception&) {
+          throw Error("--ruptured-chordae: '" + r + "' is not S0:S1 (e.g. 0.6:0.7)");
+        }
+        o.ruptured_chordae.push_back({s0, s1});
+      }
       const bool explicit_labels = !labels->empty();
       if (explicit_labels) {
         o.fit.labels = {(*labels)[0], (*labels)[1], labels->size() > 2 ? (*labels)[2] : 0, 0,

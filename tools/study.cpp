@@ -117,8 +117,8 @@ void register_cohort(CLI::App* study, Context& ctx) {
       "the test size: 5 patients, default parameters, a coarse model (flags given still apply)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::CohortStudyOptions o =
-          a->quick ? studies::CohortStudyOptions::quick() : studies::CohortStudyOptions{};
+      studies::CohortStudyOptions o;
+      if (a->quick) o = studies::CohortStudyOptions::quick();
       o.out = a->out;
       o.folder = a->folder;
       o.cache = a->cache;
@@ -237,8 +237,8 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
   cmd->add_flag("--quick", a->quick, "the test size: a coarse model (16 x 12, dt 0.02 s)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::SensitivityStudyOptions o =
-          a->quick ? studies::SensitivityStudyOptions::quick() : studies::SensitivityStudyOptions{};
+      studies::SensitivityStudyOptions o;
+      if (a->quick) o = studies::SensitivityStudyOptions::quick();
       o.out = a->out;
       o.seed = a->seed;
       o.patient = a->patient;

@@ -69,8 +69,8 @@ void register_study_clip(CLI::App* study, Context& ctx) {
                 "0.3 + 0.7");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::ClipStudyOptions o =
-          a->quick ? studies::ClipStudyOptions::quick() : studies::ClipStudyOptions{};
+      studies::ClipStudyOptions o;
+      if (a->quick) o = studies::ClipStudyOptions::quick();
       o.out = a->out;
       o.folder = a->folder;
       if (!a->quick || cmd->count("--patients")) o.patients = a->patients;

@@ -60,8 +60,8 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
                 "the test size: a 12 x 8 base at dt 0.02 s, two or three values per series");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::ConvergenceStudyOptions o =
-          a->quick ? studies::ConvergenceStudyOptions::quick() : studies::ConvergenceStudyOptions{};
+      studies::ConvergenceStudyOptions o;
+      if (a->quick) o = studies::ConvergenceStudyOptions::quick();
       o.out = a->out;
       o.seed = a->seed;
       o.patient = a->patient;

@@ -82,8 +82,8 @@ void register_study_detection(CLI::App* study, Context& ctx) {
                 "the test size: 3 training and 1 test patient, coarse images, small forests");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::DetectionStudyOptions o =
-          a->quick ? studies::DetectionStudyOptions::quick() : studies::DetectionStudyOptions{};
+      studies::DetectionStudyOptions o;
+      if (a->quick) o = studies::DetectionStudyOptions::quick();
       o.out = a->out;
       o.cache = a->cache;
       o.model_file = a->model;

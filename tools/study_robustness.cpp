@@ -48,8 +48,8 @@ void register_study_robustness(CLI::App* study, Context& ctx) {
   cmd->add_flag("--quick", a->quick, "the test size: 12 cases on a 12 x 8 model");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      studies::RobustnessStudyOptions o =
-          a->quick ? studies::RobustnessStudyOptions::quick() : studies::RobustnessStudyOptions{};
+      studies::RobustnessStudyOptions o;
+      if (a->quick) o = studies::RobustnessStudyOptions::quick();
       o.out = a->out;
       if (!a->quick || cmd->count("--runs")) o.runs = a->runs;
       o.seed = a->seed;

@@ -87,6 +87,16 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
          std::string("atrial leaflet surface on the (u,v) grid, NaN in frames with "
                      "leaflet_observed = 0"),
          "la_surface");
+  std::vector<double> rupture;
+  for (const ChordaeRupture& r : seq.ruptured_chordae) {
+    rupture.push_back(r.s_begin);
+    rupture.push_back(r.s_end);
+  }
+  g.write("ruptured_chordae", rupture, {static_cast<hsize_t>(seq.ruptured_chordae.size()), 2});
+  g.attr("description",
+         std::string("torn marginal chordae: [s_begin, s_end) of their insertion sites around "
+                     "the annulus (grid coordinate s from the anterolateral commissure)"),
+         "ruptured_chordae");
 }
 
 ValveSequence read_sequence(const h5::Location& root) {
@@ -147,6 +157,11 @@ ValveSequence read_sequence(const h5::Location& root) {
       }
       fr.la_surface = LeafletGrid(seq.ures, seq.vres, std::move(P));
     }
+  }
+  // Files written before ruptures were anatomy have none here (see read_truth).
+  if (g.exists("ruptured_chordae")) {
+    const auto r = g.read_doubles("ruptured_chordae", &d, {-1, 2}, "(k, 2)");
+    for (size_t i = 0; i + 1 < r.size(); i += 2) seq.ruptured_chordae.push_back({r[i], r[i + 1]});
   }
   seq.validate((g.file() + ": /sequence").c_str());
   return seq;
@@ -226,13 +241,11 @@ void write_truth(const h5::Location& root, const VirtualTruth& truth) {
   g.attr("description",
          std::string("valve frame (x anterior, y anterolateral, z atrium) -> image space, mm"),
          "pose");
-  g.write("ruptured_marginal_chordae", truth.ruptured_marginal_chordae,
-          {static_cast<hsize_t>(truth.ruptured_marginal_chordae.size())});
   const h5::Location a = g.create_group("anatomy", /*track_order=*/true);
   for (const auto& [name, v] : truth.anatomy) a.write_scalar(name, v, nullptr);
 }
 
-VirtualTruth read_truth(const h5::Location& root) {
+VirtualTruth read_truth(const h5::Location& root, std::vector<int>* legacy_ruptured) {
   const h5::Location g = root.open_group("ground_truth");
   VirtualTruth t;
   try {
@@ -251,7 +264,9 @@ VirtualTruth read_truth(const h5::Location& root) {
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) t.pose(r, c) = pose[r * 4 + c];
   }
-  t.ruptured_marginal_chordae = g.read_ints("ruptured_marginal_chordae", &d, {-1}, "(k)");
+  // Files written before ruptures were anatomy: indices of the 28 default marginal chordae.
+  if (g.exists("ruptured_marginal_chordae"))
+    *legacy_ruptured = g.read_ints("ruptured_marginal_chordae", &d, {-1}, "(k)");
   const h5::Location a = g.open_group("anatomy");
   std::vector<std::string> names;
   auto collect = [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
@@ -370,7 +385,14 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
   }
   if (root.exists("ground_truth")) {
     if (!p.synthetic) root.fail("ground_truth", "present but the file is not marked synthetic");
-    p.truth = read_truth(root);
+    std::vector<int> legacy;
+    p.truth = read_truth(root, &legacy);
+    for (const int k : legacy) {
+      if (k < 0 || k >= 28) root.fail("ground_truth/ruptured_marginal_chordae", "index out of 0..27");
+      const ChordaeRupture r = marginal_chorda_rupture(k, 28);
+      p.sequence.ruptured_chordae.push_back(r);
+      if (p.detected) p.detected->ruptured_chordae.push_back(r);
+    }
   }
   return p;
 }

@@ -2,6 +2,7 @@
 
 #include "mvtwin/core/valve_sequence.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -26,12 +27,21 @@ Curve resample_closed_curve(const Eigen::Ref<const Curve>& curve, int m) {
   return out;
 }
 
+ChordaeRupture marginal_chorda_rupture(int k, int n) {
+  return {std::max(0.0, (k - 0.5) / n), std::min(1.0, (k + 0.5) / n)};
+}
+
 void ValveSequence::validate(const char* what) const {
   const std::string w(what);
   auto fail = [&](const std::string& msg) { throw Error(w + ": " + msg); };
   if (frames.empty()) fail("the sequence has no frames");
   if (ures < 8 || ures % 2 != 0) fail("ures must be even and >= 8, got " + std::to_string(ures));
   if (vres < 3) fail("vres must be >= 3, got " + std::to_string(vres));
+  for (const ChordaeRupture& r : ruptured_chordae) {
+    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0))
+      fail("a chordae rupture must have 0 <= s_begin < s_end <= 1, got [" +
+           std::to_string(r.s_begin) + ", " + std::to_string(r.s_end) + ")");
+  }
   const int n = num_frames();
   if (end_diastole < -1 || end_diastole >= n) {
     fail("end_diastole index " + std::to_string(end_diastole) + " is outside 0.." +

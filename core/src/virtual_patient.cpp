@@ -447,7 +447,12 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   truth.pathology = pathology;
   truth.parameters = d.hidden;
   for (int g = 0; g < kNumChordaeGroups; ++g) truth.parameters.restlength_factor[g] *= taut[g];
-  truth.ruptured_marginal_chordae = d.ruptured;
+  // Torn chordae are anatomy: one stretch over the adjacent marginal chordae of the default 28.
+  if (!d.ruptured.empty()) {
+    const ChordaeRupture first = marginal_chorda_rupture(d.ruptured.front(), 28);
+    const ChordaeRupture last = marginal_chorda_rupture(d.ruptured.back(), 28);
+    seq.ruptured_chordae.push_back({first.s_begin, last.s_end});
+  }
   truth.pose = pose;
   truth.closed_frames =
       "missing: frames after end_diastole have no leaflet surface yet; they must be simulated with "

@@ -113,6 +113,12 @@ bool PatientImportOptions::is_valid(std::string* error) const {
     *error = "the first closed frame must come after end-diastole";
     return false;
   }
+  for (const ChordaeRupture& r : ruptured_chordae) {
+    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0)) {
+      *error = "a chordae rupture must have 0 <= s_begin < s_end <= 1";
+      return false;
+    }
+  }
   if (!(max_commissure_jump_mm > 0)) {
     *error = "max_commissure_jump_mm must be positive";
     return false;
@@ -218,6 +224,7 @@ PatientImport import_patient(std::vector<LabelFrame> frames,
   seq.vres = opt.fit.vres;
   seq.end_diastole = ed;
   seq.first_closed = fc;
+  seq.ruptured_chordae = opt.ruptured_chordae;
   for (const FrameFit& fit : out.fits) seq.frames.push_back(fit.frame);
 
   // Landmarks from markups: a time picks the frame; no time means every frame.

@@ -133,6 +133,10 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
         "closure simulation: the sequence needs an end-diastolic frame before a first closed "
         "frame");
   }
+  for (const ChordaeRupture& r : seq.ruptured_chordae) {
+    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0))
+      throw Error("closure simulation: a chordae rupture must have 0 <= s_begin < s_end <= 1");
+  }
   ClosureScene sc;
   sc.model = build_valve_model(seq, opt.model);
   const ValveModel& model = sc.model;
@@ -152,15 +156,15 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
   sc.annulus_ed_ = sc.annulus(0.0);
   sc.peak_pressure_mpa = params.peak_pressure_mpa;
 
-  // Chordae with their rest lengths and laws (ruptured marginal chordae left out).
+  // Chordae with their rest lengths and laws; the marginal chordae whose insertion site (k / n
+  // of n evenly spaced ones) lies in a ruptured stretch of the anatomy are left out.
   int marginal_index = 0;
   for (const ModelChorda& c : model.chordae) {
     if (c.marginal) {
-      const int k = marginal_index++;
-      if (std::find(opt.ruptured_marginal_chordae.begin(), opt.ruptured_marginal_chordae.end(),
-                    k) != opt.ruptured_marginal_chordae.end()) {
+      const double site = static_cast<double>(marginal_index++) / opt.model.marginal_chordae;
+      if (std::any_of(seq.ruptured_chordae.begin(), seq.ruptured_chordae.end(),
+                      [site](const ChordaeRupture& r) { return r.contains(site); }))
         continue;
-      }
     }
     SceneChorda ch;
     ch.nodes = c.nodes;

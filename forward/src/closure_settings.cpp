@@ -126,7 +126,7 @@ const std::map<std::string, Field>& fields() {
                      }
                    },
                    [](const ClosureOptions& o) { return std::string(name(o.solver.kind)); }};
-    // Lists: clips as "s_a,t_a,s_p,t_p[,k];..." and ruptured chordae as "i,j,...".
+    // A list: clips as "s_a,t_a,s_p,t_p[,k];...".
     m["clips"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
                     o.clips.clear();
                     std::stringstream all(v);
@@ -161,21 +161,6 @@ const std::map<std::string, Field>& fields() {
                     }
                     return out;
                   }};
-    m["ruptured_marginal_chordae"] = {
-        [](ClosureOptions& o, const std::string& k, const std::string& v) {
-          o.ruptured_marginal_chordae.clear();
-          std::stringstream parts(v);
-          std::string item;
-          while (std::getline(parts, item, ',')) {
-            if (!item.empty()) o.ruptured_marginal_chordae.push_back(to_int(k, item));
-          }
-        },
-        [](const ClosureOptions& o) {
-          std::string out;
-          for (int i : o.ruptured_marginal_chordae)
-            out += (out.empty() ? "" : ",") + std::to_string(i);
-          return out;
-        }};
     dbl("clip_closing_s", [](ClosureOptions& o) -> double& { return o.clip_closing_s; });
     return m;
   }();

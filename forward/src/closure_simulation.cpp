@@ -49,9 +49,6 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
-  for (int k : ruptured_marginal_chordae) {
-    if (k < 0 || k >= model.marginal_chordae) return bad("ruptured chorda index out of range");
-  }
   return true;
 }
 

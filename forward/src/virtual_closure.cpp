@@ -34,7 +34,6 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   // 2 ms of the image clock at the default stretch), not every step: each record samples the
   // surface, measures the orifice and evaluates the elastic energy.
   o.record_every = std::max(1, static_cast<int>(std::lround(0.02 / o.dt)));
-  o.ruptured_marginal_chordae = p->truth->ruptured_marginal_chordae;
   const ClosureResult r = simulate_closure(seq, p->truth->parameters, o);
   if (!r.summary.converged()) {
     throw Error("observed closure of '" + p->id + "' failed: " + r.summary.reason);

@@ -89,8 +89,6 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
             o.progress = nullptr;
             o.clips.clear();
             for (const ClipSite& s : sc.sites) o.clips.push_back(clip_options(s));
-            if (patient.truth && o.ruptured_marginal_chordae.empty())
-              o.ruptured_marginal_chordae = patient.truth->ruptured_marginal_chordae;
             try {
               sc.quality = closure_quality(forward::simulate_closure(patient.sequence, par, o));
             } catch (const std::exception& e) {

@@ -67,10 +67,6 @@ forward::ClosureOptions ClosureObjective::simulation_options() const {
   } else {
     o.record_every = 0;  // the end state only
   }
-  if (patient_->truth && o.ruptured_marginal_chordae.empty()) {
-    // What is known about the anatomy (rupture is seen in the images), not a fitted value.
-    o.ruptured_marginal_chordae = patient_->truth->ruptured_marginal_chordae;
-  }
   return o;
 }
 

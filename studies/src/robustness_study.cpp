@@ -84,7 +84,6 @@ Drawn draw_case(const RobustnessStudyOptions& o, int i) {
   par.peak_pressure_mpa = units::mmhg_to_mpa(rng.uniform(0.0, 200.0));
   c.options = o.model;
   c.options.progress = nullptr;
-  c.options.ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   c.options.dt = std::exp(rng.uniform(std::log(0.001), std::log(0.1)));
   const double a = rng.uniform();
   c.row.anatomy = "clean";

@@ -147,7 +147,7 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
   ValveParameters baseline;
   forward::ClosureOptions model = o.model;
   const Patient patient =
-      detail::study_patient(o.seed, o.patient, o.patient_file, &baseline, &model);
+      detail::study_patient(o.seed, o.patient, o.patient_file, &baseline);
   model.progress = nullptr;
   // Record every sample_s of observed time (the simulated closure is `stretch` times longer).
   model.record_every =
@@ -185,9 +185,6 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
           forward::apply_setting(s, &m, &par);
         }
       }
-      // A rupture names marginal chordae by index: with another count it has no meaning.
-      if (m.model.marginal_chordae != model.model.marginal_chordae)
-        m.ruptured_marginal_chordae.clear();
       const forward::ClosureResult r = forward::simulate_closure(patient.sequence, par, m);
       if (!r.summary.converged()) throw Error(r.summary.reason);
       for (const auto& s : r.samples) {

@@ -64,14 +64,13 @@ std::string stats_text(const nlohmann::json& s, int digits) {
 }
 
 Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
-                      ValveParameters* parameters, forward::ClosureOptions* model) {
+                      ValveParameters* parameters) {
   if (!file.empty()) {
     *parameters = ValveParameters{};
     return read_patient(file, false);
   }
   Patient p = make_cohort_patient(seed, index);
   *parameters = p.truth->parameters;
-  model->ruptured_marginal_chordae = p.truth->ruptured_marginal_chordae;
   return p;
 }
 

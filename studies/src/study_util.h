@@ -44,10 +44,10 @@ double number_at(const nlohmann::json& j, const char* key);
 std::string stats_text(const nlohmann::json& s, int digits = 2);
 
 /// The patient of a one-patient study: virtual patient `index` of cohort `seed` at its hidden
-/// parameters (its ruptured chordae set on `model`), or `file` at the default parameters.
-/// Throws mvtwin::Error for an unreadable file.
+/// parameters, or `file` at the default parameters. Throws mvtwin::Error for an unreadable
+/// file.
 Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
-                      ValveParameters* parameters, forward::ClosureOptions* model);
+                      ValveParameters* parameters);
 
 /// The provenance every study file records.
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s);

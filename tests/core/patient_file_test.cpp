@@ -122,6 +122,44 @@ TEST_F(PatientFile, RoundTripKeepsEverything) {
   EXPECT_TRUE(q.images[0].spacing.isApprox(im.spacing));
 }
 
+// Torn chordae are anatomy on the sequence: drawn for the ruptured-chordae pathology (on the
+// posterior leaflet), kept by the file, converted from older files that held marginal chorda
+// indices under /ground_truth, and refused when malformed.
+TEST_F(PatientFile, ChordaeRupturesAreAnatomyAndOlderFilesConvert) {
+  VirtualPatientOptions vo;
+  vo.pathology = Pathology::kProlapseRupturedChordae;
+  const Patient torn = make_virtual_patient(3, vo);
+  ASSERT_EQ(torn.sequence.ruptured_chordae.size(), 1u);
+  EXPECT_GE(torn.sequence.ruptured_chordae[0].s_begin, 0.5);  // posterior scallops
+  EXPECT_TRUE(patient_.sequence.ruptured_chordae.empty() ||
+              patient_.truth->pathology == Pathology::kProlapseRupturedChordae);
+
+  Patient p = patient_;
+  p.sequence.ruptured_chordae = {{0.6, 0.65}, {0.8, 0.9}};
+  const fs::path f = dir_ / "torn.h5";
+  write_patient(f, p);
+  const Patient q = read_patient(f);
+  ASSERT_EQ(q.sequence.ruptured_chordae.size(), 2u);
+  EXPECT_EQ(q.sequence.ruptured_chordae[1].s_begin, 0.8);
+  EXPECT_EQ(q.sequence.ruptured_chordae[1].s_end, 0.9);
+
+  replace_dataset(f, "sequence/ruptured_chordae", {}, {});
+  replace_dataset(f, "ground_truth/ruptured_marginal_chordae", {23, 24}, {2});
+  const Patient old = read_patient(f);
+  ASSERT_EQ(old.sequence.ruptured_chordae.size(), 2u);
+  EXPECT_NEAR(old.sequence.ruptured_chordae[0].s_begin, 22.5 / 28, 1e-15);
+  EXPECT_NEAR(old.sequence.ruptured_chordae[1].s_end, 24.5 / 28, 1e-15);
+
+  replace_dataset(f, "ground_truth/ruptured_marginal_chordae", {}, {});
+  replace_dataset(f, "sequence/ruptured_chordae", {0.7, 0.6}, {1, 2});
+  try {
+    read_patient(f);
+    FAIL() << "a reversed rupture was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("rupture"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(PatientFile, DetectedSequenceIsKeptBesideTheStoredOne) {
   const fs::path p = dir_ / "d.h5";
   write_patient(p, patient_);

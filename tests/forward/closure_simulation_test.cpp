@@ -315,14 +315,36 @@ TEST(ClosureSimulation, ClipPullsTheSitesTogetherAndHolds) {
   EXPECT_THROW(simulate_closure(p.sequence, p.truth->parameters, o), Error);
 }
 
+// A rupture is a stretch of the anatomy: the marginal chordae inserting in it are left out,
+// whatever their number (2 of 28, 4 of 56), and none of the basal ones.
+TEST(ClosureScene, RupturedStretchLeavesOutTheMarginalChordaeInsertingInIt) {
+  Patient p = make_virtual_patient(35);
+  p.sequence.ruptured_chordae = {{22.5 / 28, 24.5 / 28}};
+  for (int n : {28, 56}) {
+    ClosureOptions o = small_options();
+    o.model.ures = 16;  // room for 4 x ures chordae
+    o.model.marginal_chordae = n;
+    const ClosureScene intact = make_closure_scene(p.sequence, p.truth->parameters, o);
+    Patient whole = p;
+    whole.sequence.ruptured_chordae.clear();
+    const ClosureScene all = make_closure_scene(whole.sequence, p.truth->parameters, o);
+    int marginal_all = 0, marginal_torn = 0, basal_all = 0, basal_torn = 0;
+    for (const SceneChorda& c : all.chordae) (c.marginal ? marginal_all : basal_all)++;
+    for (const SceneChorda& c : intact.chordae) (c.marginal ? marginal_torn : basal_torn)++;
+    EXPECT_EQ(marginal_all, n);
+    EXPECT_EQ(marginal_all - marginal_torn, 2 * n / 28) << n << " marginal chordae";
+    EXPECT_EQ(basal_torn, basal_all);
+  }
+}
+
 TEST(ClosureSimulation, InvalidOptionsAreNamed) {
   const Patient p = make_virtual_patient(35);
   ClosureOptions o = small_options();
   o.dt = -1;
   EXPECT_THROW(simulate_closure(p.sequence, p.truth->parameters, o), Error);
-  o = small_options();
-  o.ruptured_marginal_chordae = {99};
-  EXPECT_THROW(simulate_closure(p.sequence, p.truth->parameters, o), Error);
+  Patient torn = p;
+  torn.sequence.ruptured_chordae = {{0.7, 0.6}};  // an empty, reversed stretch
+  EXPECT_THROW(simulate_closure(torn.sequence, p.truth->parameters, small_options()), Error);
   Patient q = p;
   q.sequence.first_closed = -1;
   EXPECT_THROW(simulate_closure(q.sequence, p.truth->parameters, small_options()), Error);

@@ -39,8 +39,6 @@ Pathology pathology_from_name(std::string_view name);
 struct VirtualTruth {
   Pathology pathology = Pathology::kNormal;
   ValveParameters parameters;
-  /// Marginal chordae (index k of SPEC Sec. 3, 0..27) that are ruptured.
-  std::vector<int> ruptured_marginal_chordae;
   /// Valve frame -> image space (the anatomy was drawn in a valve-centred frame: x towards
   /// the anterior annulus, y towards the anterolateral commissure, z into the atrium).
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();

@@ -37,6 +37,19 @@ struct ValveFrame {
 
 /// A valve over time: what detection produces and what the forward model consumes
 /// (Mansi et al. 2012, Sec. 2.1; SPEC Sec. 2).
+/// A torn stretch of marginal chordae (anatomy that the images show: a flail segment). The
+/// marginal chordae that insert at grid coordinate s in [s_begin, s_end) around the annulus
+/// (from the anterolateral commissure, anterior leaflet for s < 0.5; valve-model.md) are
+/// ruptured, whatever number of chordae the model has.
+struct ChordaeRupture {
+  double s_begin = 0.0, s_end = 0.0;
+  bool contains(double s) const { return s >= s_begin && s < s_end; }
+};
+
+/// The stretch around marginal chorda k of n evenly spaced ones (insertion site s = k / n):
+/// [(k - 1/2) / n, (k + 1/2) / n), clipped to [0, 1].
+ChordaeRupture marginal_chorda_rupture(int k, int n);
+
 struct ValveSequence {
   int ures = 0;
   int vres = 0;
@@ -45,6 +58,8 @@ struct ValveSequence {
   int end_diastole = -1;
   /// Index of the first closed frame, or -1 if unknown.
   int first_closed = -1;
+  /// Ruptured marginal chordae (none for most valves).
+  std::vector<ChordaeRupture> ruptured_chordae;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
   /// Names of the landmarks assumed (estimated from anatomy) in any frame, "" when none.
@@ -53,7 +68,7 @@ struct ValveSequence {
   /// Throws mvtwin::Error naming `what` and the first problem: inconsistent resolutions or
   /// shapes, non-finite coordinates, times not strictly increasing, phase indices out of
   /// range or out of order, observed landmarks that are NaN, an annulus that differs from the
-  /// v = 0 row of the surface.
+  /// v = 0 row of the surface, a rupture outside 0 <= s_begin < s_end <= 1.
   void validate(const char* what) const;
 
   /// The same sequence on another (ures, vres) grid; correspondence is kept (the annulus is

@@ -56,6 +56,9 @@ struct PatientImportOptions {
   /// Frames' annuli may move, but a jump of the anterolateral commissure larger than this
   /// between frames means the grids disagree (mm).
   double max_commissure_jump_mm = 15.0;
+  /// Torn marginal chordae seen in the images (a flail segment), as stretches of the grid
+  /// coordinate s around the annulus (ValveSequence::ruptured_chordae); empty: none.
+  std::vector<ChordaeRupture> ruptured_chordae;
 
   bool is_valid(std::string* error) const;
 };

@@ -57,8 +57,6 @@ struct ClosureOptions {
   double clip_closing_s = 0.5;
   /// Called after every step of the closure with the simulated time and the duration (s).
   std::function<void(double t, double duration)> progress;
-  /// Marginal chordae indices (0..marginal_chordae-1) to leave out (ruptured).
-  std::vector<int> ruptured_marginal_chordae;
   /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
   /// nodes start at rest whatever is given.
   Eigen::VectorXd initial_velocity;
