@@ -89,8 +89,8 @@ std::string join(const std::vector<std::string>& v) {
 
 forward::ClosureOptions with_settings(forward::ClosureOptions o,
                                       const std::vector<std::string>& sets) {
-  ValveParameters dummy;
-  for (const auto& a : sets) forward::apply_setting(a, &o, &dummy);
+  for (const auto& a : sets)
+    forward::apply_option(a, &o, "bench simulates virtual patients with their hidden parameters");
   std::string err;
   if (!o.is_valid(&err)) throw Error("bench: " + err);
   return o;

@@ -77,12 +77,11 @@ std::string quality_line(const inverse::ClosureQuality& q) {
 /// The simulation options a calibration used (its options record), else the defaults.
 forward::ClosureOptions options_of(const CalibrationRecord& c) {
   forward::ClosureOptions o;
-  ValveParameters unused;
   for (const auto& [k, v] : c.options) {
     if (k.rfind("fit_", 0) == 0 || k == "clips" || k == "ruptured_marginal_chordae" ||
         k == "record_every")
       continue;
-    forward::apply_setting(k + "=" + v, &o, &unused);
+    forward::apply_option(k + "=" + v, &o);
   }
   return o;
 }

@@ -246,8 +246,10 @@ void register_commands(CLI::App& app, Context& ctx) {
         if (*closure) {
           forward::VirtualClosureOptions vo;
           vo.noise_mm = *noise;
-          ValveParameters unused;
-          for (const auto& a : *closure_sets) forward::apply_setting(a, &vo.simulation, &unused);
+          for (const auto& a : *closure_sets)
+            forward::apply_option(a, &vo.simulation,
+                                  "--closure-set: the closing frames are simulated with the "
+                                  "patient's hidden parameters");
           std::cout << "simulating the closing frames of " << p.id << " ..." << std::endl;
           forward::simulate_observed_closure(&p, vo);
           std::cout << p.truth->closed_frames << "\n";

@@ -33,16 +33,7 @@ studies::StudyProgress progress_printer(const studies::WorkPool& pool) {
 /// dropping it.
 void apply_model_setting(const std::string& assignment, forward::ClosureOptions* options,
                          const std::string& why) {
-  ValveParameters p;
-  const ValveParameters before = p;
-  forward::apply_setting(assignment, options, &p);
-  bool changed = false;
-  p.for_each([&](const std::string& name, double v, const char*) {
-    before.for_each(
-        [&](const std::string& n2, double v2, const char*) { changed |= name == n2 && v != v2; });
-  });
-  if (changed)
-    throw Error(assignment + " is a patient parameter, not a model option (" + why + ")");
+  forward::apply_option(assignment, options, why);
 }
 
 namespace {

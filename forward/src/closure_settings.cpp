@@ -169,14 +169,53 @@ const std::map<std::string, Field>& fields() {
 
 }  // namespace
 
-void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) {
+namespace {
+
+std::pair<std::string, std::string> split_assignment(const std::string& a) {
   const auto eq = a.find('=');
   if (eq == std::string::npos || eq == 0) throw Error("--set needs name=value, got '" + a + "'");
-  const std::string name = a.substr(0, eq), value = a.substr(eq + 1);
+  return {a.substr(0, eq), a.substr(eq + 1)};
+}
+
+std::string option_names() {
+  std::string known;
+  for (const auto& [n, f] : fields()) known += " " + n;
+  return known;
+}
+
+std::string parameter_names() {
+  std::string known;
+  ValveParameters p;
+  p.for_each([&](const std::string& n, double&, const char*) { known += " " + n; });
+  return known + " peak_pressure_mmhg";
+}
+
+}  // namespace
+
+bool is_option_name(const std::string& name) { return fields().count(name) > 0; }
+
+bool is_parameter_name(const std::string& name) {
+  if (name == "peak_pressure_mmhg") return true;
+  bool found = false;
+  ValveParameters p;
+  p.for_each([&](const std::string& n, double&, const char*) { found |= n == name; });
+  return found;
+}
+
+void apply_option(const std::string& a, ClosureOptions* o, const std::string& context) {
+  const auto [name, value] = split_assignment(a);
   if (const auto it = fields().find(name); it != fields().end()) {
     it->second.set(*o, name, value);
     return;
   }
+  if (is_parameter_name(name))
+    throw Error("--set " + name + ": a patient parameter, not a simulation option (" + context +
+                ")");
+  throw Error("--set: unknown option '" + name + "'; known:" + option_names());
+}
+
+void apply_parameter(const std::string& a, ValveParameters* p) {
+  const auto [name, value] = split_assignment(a);
   if (name == "peak_pressure_mmhg") {
     p->peak_pressure_mpa = units::mmhg_to_mpa(to_double(name, value));
     return;
@@ -189,10 +228,17 @@ void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) 
     }
   });
   if (found) return;
-  std::string known;
-  for (const auto& [n, f] : fields()) known += " " + n;
-  p->for_each([&](const std::string& n, double&, const char*) { known += " " + n; });
-  throw Error("--set: unknown name '" + name + "'; known:" + known + " peak_pressure_mmhg");
+  if (is_option_name(name))
+    throw Error("--set " + name + ": a simulation option, not a patient parameter");
+  throw Error("--set: unknown parameter '" + name + "'; known:" + parameter_names());
+}
+
+void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) {
+  const std::string name = split_assignment(a).first;
+  if (is_option_name(name)) return apply_option(a, o);
+  if (is_parameter_name(name)) return apply_parameter(a, p);
+  throw Error("--set: unknown name '" + name + "'; known options:" + option_names() +
+              "; known parameters:" + parameter_names());
 }
 
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& o) {

@@ -203,8 +203,7 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
   std::vector<int> sim_of(runs.size());
   for (std::size_t i = 0; i < runs.size(); ++i) {
     forward::ClosureOptions m = base;
-    ValveParameters unused;
-    for (const auto& s : runs[i].settings) forward::apply_setting(s, &m, &unused);
+    for (const auto& s : runs[i].settings) forward::apply_option(s, &m);
     const std::string key = detail::describe(m).dump();
     auto it =
         std::find_if(sims.begin(), sims.end(), [&](const Simulation& s) { return s.key == key; });

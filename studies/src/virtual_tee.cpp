@@ -111,8 +111,9 @@ json summarize_detections(const std::vector<const json*>& runs) {
 VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
   closure.simulation = forward::ClosureOptions{};
   closure.noise_mm = 0.0;
-  ValveParameters unused;
-  for (const auto& a : sets) forward::apply_setting(a, &closure.simulation, &unused);
+  for (const auto& a : sets)
+    forward::apply_option(a, &closure.simulation,
+                          "the truths are simulated with the virtual patients' hidden parameters");
   std::string description = "truth";
   for (const auto& [name, value] : forward::describe_options(closure.simulation))
     description += " " + name + "=" + value;

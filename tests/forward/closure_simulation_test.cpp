@@ -9,8 +9,10 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
 #include "mvtwin/core/point_triangle_distance.h"
+#include "mvtwin/core/units.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_scene.h"
+#include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/self_contact.h"
 
 namespace mvtwin::forward {
@@ -335,6 +337,41 @@ TEST(ClosureScene, RupturedStretchLeavesOutTheMarginalChordaeInsertingInIt) {
     EXPECT_EQ(marginal_all - marginal_torn, 2 * n / 28) << n << " marginal chordae";
     EXPECT_EQ(basal_torn, basal_all);
   }
+}
+
+// One setter for options and one for parameters: each refuses the other's names (rather than
+// dropping them), and unknown names are named.
+TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
+  ClosureOptions o;
+  ValveParameters par;
+  apply_option("dt=0.005", &o);
+  apply_option("contact_friction=0.2", &o);
+  apply_option("pcg_tolerance=1e-4", &o);
+  EXPECT_EQ(o.dt, 0.005);
+  EXPECT_EQ(o.contact.friction, 0.2);
+  EXPECT_EQ(o.solver.pcg_tolerance, 1e-4);
+  apply_parameter("peak_pressure_mmhg=75", &par);
+  EXPECT_NEAR(units::mpa_to_mmhg(par.peak_pressure_mpa), 75.0, 1e-9);
+  auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_NE(message([&] { apply_option("peak_pressure_mmhg=80", &o, "why not"); })
+                .find("a patient parameter, not a simulation option (why not)"),
+            std::string::npos);
+  EXPECT_NE(message([&] { apply_parameter("dt=0.1", &par); }).find("a simulation option"),
+            std::string::npos);
+  EXPECT_NE(message([&] { apply_setting("no_such_name=1", &o, &par); }).find("no_such_name"),
+            std::string::npos);
+  EXPECT_NE(message([&] { apply_option("dt=fast", &o); }).find("not a number"), std::string::npos);
+  // Every described option can be set back from its description.
+  ClosureOptions copy;
+  for (const auto& [name, value] : describe_options(o)) apply_option(name + "=" + value, &copy);
+  EXPECT_EQ(describe_options(copy), describe_options(o));
 }
 
 TEST(ClosureSimulation, InvalidOptionsAreNamed) {

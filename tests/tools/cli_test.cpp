@@ -420,6 +420,16 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
   for (const char* d : {"v", "k", "r"}) EXPECT_FALSE(fs::exists(path(d) + "/study.json")) << d;
+  // Nor do the benchmarks and the phantom's closure model drop a parameter.
+  r = run("bench closure --set peak_pressure_mmhg=80 --json " + path("b.json"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("b.json")));
+  r = run("phantom --seed 2 --simulate-closure --closure-set al_modulus_scale=2 --out " +
+          path("ph.h5"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("ph.h5")));
   // The benchmarks that became studies are gone, not silently kept.
   for (const char* b : {"bench accuracy", "bench stability", "bench calibrate"}) {
     r = run(std::string(b) + " --json " + path("b.json"));

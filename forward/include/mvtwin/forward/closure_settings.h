@@ -8,14 +8,25 @@
 
 namespace mvtwin::forward {
 
-/// Sets one simulation option or patient parameter from "name=value" (the command line's
-/// --set). Names are the ClosureOptions / ModelOptions fields (dt, stretch, ures, vres, layers,
-/// order, solver, contact, contact_friction, ...) and the ValveParameters names
-/// (restlength_factor_anterolateral_marginal, ..., peak_pressure in MPa, or peak_pressure_mmhg).
-/// Throws mvtwin::Error naming an unknown name or a value that does not parse; the options'
-/// validator checks ranges.
+/// Sets one simulation option from "name=value" (the command line's --set): the ClosureOptions
+/// and ModelOptions names (dt, stretch, ures, vres, layers, order, solver, contact,
+/// contact_friction, clips, ...). Throws mvtwin::Error naming an unknown name or a value that does
+/// not parse; a patient parameter's name is refused as such, with `context` saying why the
+/// command takes none (it would otherwise be dropped). The options' validator checks ranges.
+void apply_option(const std::string& assignment, ClosureOptions* options,
+                  const std::string& context = "this command takes simulation options only");
+
+/// Sets one patient parameter from "name=value": the ValveParameters names
+/// (restlength_factor_anterolateral_marginal, ..., peak_pressure in MPa) or peak_pressure_mmhg.
+/// Throws mvtwin::Error naming an unknown name (an option's name as such) or a bad value.
+void apply_parameter(const std::string& assignment, ValveParameters* parameters);
+
+/// An option or a parameter, by its name (for commands that take both).
 void apply_setting(const std::string& assignment, ClosureOptions* options,
                    ValveParameters* parameters);
+
+bool is_option_name(const std::string& name);
+bool is_parameter_name(const std::string& name);
 
 /// Every settable option with its current value, as text (for reports and result files).
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& options);
