@@ -128,8 +128,7 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
   o.progress = progress_line("  reference");
   const forward::ClosureResult r = forward::simulate_closure(p.sequence, p.truth->parameters, o);
   std::cout << r.summary.brief_report() << "\n";
-  if (!r.summary.converged())
-    throw Error("bench: the reference run failed: " + r.summary.reason);
+  if (!r.summary.converged()) throw Error("bench: the reference run failed: " + r.summary.reason);
   if (!file.empty()) {
     SimulationRecord rec = forward::make_simulation_record(r, ro, p.truth->parameters);
     rec.patient_id = p.id;
@@ -283,9 +282,7 @@ void register_bench(CLI::App& app, Context& ctx) {
             std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
                           name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations,
                           s.pcg_iterations, e.mean, e.max,
-                          s.converged()
-                              ? ""
-                              : ("  FAILED: " + s.reason).c_str());
+                          s.converged() ? "" : ("  FAILED: " + s.reason).c_str());
             std::cout << line << std::flush;
           }
         }

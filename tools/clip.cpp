@@ -12,8 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "output_files.h"
-#include "progress.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
@@ -23,6 +21,8 @@
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/inverse/clip_prediction.h"
+#include "output_files.h"
+#include "progress.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -110,27 +110,31 @@ void register_clip(CLI::App& app, Context& ctx) {
   auto jobs = std::make_shared<int>(2);
   auto sets = std::make_shared<std::vector<std::string>>();
   auto use_detected = std::make_shared<bool>(false);
-  cmd->add_flag("--use-detected", *use_detected,
-                "use the sequence detected from the images (mvtwin detect) instead of the stored one");
+  cmd->add_flag(
+      "--use-detected", *use_detected,
+      "use the sequence detected from the images (mvtwin detect) instead of the stored one");
   cmd->add_option("FILE", *file, "patient file (the pre-operative anatomy)")->required();
   auto true_params = std::make_shared<bool>(false);
   auto* params_opt = cmd->add_option("--params", *params, "calibration file (mvtwin calibrate)");
-  cmd->add_flag("--true-params", *true_params,
-                "a virtual patient's hidden parameters (synthetic only: what a calibration's error costs)")
+  cmd->add_flag(
+         "--true-params", *true_params,
+         "a virtual patient's hidden parameters (synthetic only: what a calibration's error costs)")
       ->excludes(params_opt);
   cmd->add_option("--at", *at, "clip site(s): position,depth[;position,depth]");
-  cmd->add_option("--out", *out, "result of the clipped closure (simulation file; a .json "
-                                 "summary is written beside it)");
+  cmd->add_option("--out", *out,
+                  "result of the clipped closure (simulation file; a .json "
+                  "summary is written beside it)");
   cmd->add_option("--vtk", *vtk, "directory for the clipped closure (ParaView)");
   cmd->add_flag("--suggest", *suggest, "search sites along the coaptation line and rank them");
   cmd->add_flag("--pairs", *pairs, "with --suggest: also pairs of clips");
-  cmd->add_option("--jobs", *jobs, "simulations at once")->default_val(2)->check(CLI::Range(1, 256));
+  cmd->add_option("--jobs", *jobs, "simulations at once")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
   cmd->add_flag("--force", *force, "replace existing output files");
   cmd->add_option("--set", *sets, "name=value for the simulation (repeatable)");
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
-      if (at->empty() == !*suggest)
-        throw Error("clip: give either --at SITES or --suggest");
+      if (at->empty() == !*suggest) throw Error("clip: give either --at SITES or --suggest");
       const Patient p = read_patient_for_run(*file, *use_detected);
       ValveParameters par;
       forward::ClosureOptions o;
@@ -146,7 +150,8 @@ void register_clip(CLI::App& app, Context& ctx) {
       }
       if (*true_params) {
         if (!p.synthetic || !p.truth)
-          throw Error(*file + ": --true-params needs a virtual patient (it holds no hidden parameters)");
+          throw Error(*file +
+                      ": --true-params needs a virtual patient (it holds no hidden parameters)");
         par = p.truth->parameters;
         source = "the virtual patient's hidden (true) parameters";
       }
@@ -155,8 +160,8 @@ void register_clip(CLI::App& app, Context& ctx) {
         refuse_overwrite_path(*out, *force);
         refuse_overwrite_path(fs::path(*out).replace_extension(".json"), *force);
       }
-      std::cout << "clip prediction for " << p.id << (p.synthetic ? " [SYNTHETIC]" : "")
-                << " with " << source << std::endl;
+      std::cout << "clip prediction for " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << " with "
+                << source << std::endl;
       std::vector<std::vector<inverse::ClipSite>> cands{{}};  // first: no clip
       if (*suggest) {
         for (auto& c : inverse::clip_candidates(*pairs)) cands.push_back(c);
@@ -174,9 +179,11 @@ void register_clip(CLI::App& app, Context& ctx) {
              {"options", forward::describe_options(o)},
              {"before", quality_json(before.quality)},
              {"provenance",
-              {{"mvtwin_version", kVersion}, {"command", ctx.command_line},
-               {"created_utc", utc_now_iso8601()}, {"seed", p.provenance.seed},
-                {"source", assumed_note(p)}}}};
+              {{"mvtwin_version", kVersion},
+               {"command", ctx.command_line},
+               {"created_utc", utc_now_iso8601()},
+               {"seed", p.provenance.seed},
+               {"source", assumed_note(p)}}}};
       std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
       if (*suggest) {
         inverse::rank_by_residual_orifice(&clipped);

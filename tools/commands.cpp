@@ -155,7 +155,10 @@ void print_info(const Patient& p, std::ostream& os) {
   frame_report(s.first_closed, "first closed");
   for (const ChordaeRupture& r : s.ruptured_chordae) {
     os << "chordae   ruptured: the marginal chordae inserting at s in [" << fmt(r.s_begin, 3)
-       << ", " << fmt(r.s_end, 3) << ") (" << (r.s_end <= 0.5 ? "anterior" : r.s_begin >= 0.5 ? "posterior" : "both")
+       << ", " << fmt(r.s_end, 3) << ") ("
+       << (r.s_end <= 0.5     ? "anterior"
+           : r.s_begin >= 0.5 ? "posterior"
+                              : "both")
        << " leaflet)\n";
   }
   if (s.end_diastole < 0 && s.first_closed < 0) frame_report(0, "frame 0");

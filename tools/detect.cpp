@@ -1,8 +1,9 @@
-// mvtwin train-detector and mvtwin detect: valve anatomy from 3D+t TEE (detection/valve_detector.h).
+// mvtwin train-detector and mvtwin detect: valve anatomy from 3D+t TEE
+// (detection/valve_detector.h).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -14,12 +15,12 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
-#include "output_files.h"
-#include "mvtwin/studies/virtual_tee.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/detection/valve_detector.h"
+#include "mvtwin/studies/virtual_tee.h"
+#include "output_files.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -46,13 +47,15 @@ std::vector<fs::path> patient_files(const fs::path& dir) {
 
 void register_detect(CLI::App& app, Context& ctx) {
   {
-    auto* cmd = app.add_subcommand("train-detector", "Train the valve detector on a cohort with images");
+    auto* cmd =
+        app.add_subcommand("train-detector", "Train the valve detector on a cohort with images");
     cmd->footer(
         "Examples:\n  mvtwin train-detector --cohort train/ --out detector.yml.gz\n"
         "  mvtwin train-detector --virtual 12 --out detector.yml.gz --cache truths/\n"
         "--cohort: every patient file in the directory with images (mvtwin render-tee) and a\n"
         "valve in the same frames is used: each frame with landmarks and an LA surface is one\n"
-        "training volume. --virtual N: N virtual patients (synthetic; seeds --cohort-seed x 1000 +\n"
+        "training volume. --virtual N: N virtual patients (synthetic; seeds --cohort-seed x 1000 "
+        "+\n"
         "1..N, pathologies in turn), their closing frames simulated and every frame rendered as\n"
         "synthetic TEE (--voxel, --probe-jitter), --jobs at once.");
     auto cohort = std::make_shared<std::string>();
@@ -65,22 +68,31 @@ void register_detect(CLI::App& app, Context& ctx) {
     auto ro = std::make_shared<detection::TeeRenderOptions>();
     ro->probe_jitter_deg = 10;
     auto o = std::make_shared<detection::DetectorOptions>();
-    auto* cohort_opt = cmd->add_option("--cohort", *cohort, "directory of patient files (HDF5) with images");
-    cmd->add_option("--virtual", *n_virtual, "train on this many virtual patients instead (synthetic)")
+    auto* cohort_opt =
+        cmd->add_option("--cohort", *cohort, "directory of patient files (HDF5) with images");
+    cmd->add_option("--virtual", *n_virtual,
+                    "train on this many virtual patients instead (synthetic)")
         ->check(CLI::Range(3, 499))
         ->excludes(cohort_opt);
-    cmd->add_option("--cohort-seed", *cohort_seed, "with --virtual: the cohort's seed")->default_val(3030);
-    cmd->add_option("--voxel", ro->voxel_mm, "with --virtual: voxel size, mm")->default_val(ro->voxel_mm);
-    cmd->add_option("--probe-jitter", ro->probe_jitter_deg, "with --virtual: probe pose variation, degrees")
+    cmd->add_option("--cohort-seed", *cohort_seed, "with --virtual: the cohort's seed")
+        ->default_val(3030);
+    cmd->add_option("--voxel", ro->voxel_mm, "with --virtual: voxel size, mm")
+        ->default_val(ro->voxel_mm);
+    cmd->add_option("--probe-jitter", ro->probe_jitter_deg,
+                    "with --virtual: probe pose variation, degrees")
         ->default_val(ro->probe_jitter_deg);
-    cmd->add_option("--jobs", *jobs, "with --virtual: patients prepared at once")->default_val(2)->check(CLI::Range(1, 256));
+    cmd->add_option("--jobs", *jobs, "with --virtual: patients prepared at once")
+        ->default_val(2)
+        ->check(CLI::Range(1, 256));
     cmd->add_option("--cache", *cache, "with --virtual: directory keeping the simulated patients");
     auto train_noise = std::make_shared<std::vector<double>>(studies::kTrainingNoise);
-    cmd->add_option("--train-noise", *train_noise, "with --virtual: electronic noise SDs of the renders (patients cycle)")
+    cmd->add_option("--train-noise", *train_noise,
+                    "with --virtual: electronic noise SDs of the renders (patients cycle)")
         ->delimiter(',')
         ->default_str("0.004,0.016,0.063,0");
     auto truth_sets = std::make_shared<std::vector<std::string>>();
-    cmd->add_option("--truth-set", *truth_sets, "with --virtual: name=value for the model simulating the closing frames");
+    cmd->add_option("--truth-set", *truth_sets,
+                    "with --virtual: name=value for the model simulating the closing frames");
     cmd->add_option("--out", *out, "model file (.yml.gz)")->required();
     cmd->add_flag("--force", *force, "replace an existing model file");
     cmd->add_option("--trees", o->trees, "trees per forest")->default_val(o->trees);
@@ -89,7 +101,8 @@ void register_detect(CLI::App& app, Context& ctx) {
     cmd->add_option("--seed", o->seed, "random seed")->default_val(o->seed);
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
-        if (cohort->empty() == (*n_virtual == 0)) throw Error("train-detector: give --cohort DIR or --virtual N");
+        if (cohort->empty() == (*n_virtual == 0))
+          throw Error("train-detector: give --cohort DIR or --virtual N");
         refuse_overwrite_path(*out, *force);
         if (*n_virtual > 0) {
           if (const std::string e = ro->invalid(); !e.empty()) throw Error("train-detector: " + e);
@@ -97,21 +110,23 @@ void register_detect(CLI::App& app, Context& ctx) {
           for (int i = 0; i < *n_virtual; ++i)
             seeds.push_back(studies::virtual_cohort_seed(*cohort_seed, i));
           const studies::VirtualTrainingResult r = studies::train_on_virtual_cohort(
-              seeds, studies::VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs, fs::path(*cache),
-              [](const std::string& line) { std::cout << line << std::endl; });
+              seeds, studies::VirtualTeeTruth(*truth_sets), *ro, *train_noise, *o, *jobs,
+              fs::path(*cache), [](const std::string& line) { std::cout << line << std::endl; });
           std::string ids;
           for (const auto& id : r.patients) ids += (ids.empty() ? "" : ",") + id;
           std::ostringstream render;
           render << "voxel_mm=" << ro->voxel_mm << " probe_jitter_deg=" << ro->probe_jitter_deg
-                 << " noise=" << json_list(*train_noise) << " speckle=" << ro->speckle << " dropout=" << ro->dropout_fraction;
+                 << " noise=" << json_list(*train_noise) << " speckle=" << ro->speckle
+                 << " dropout=" << ro->dropout_fraction;
           r.detector.save(*out, {{"mvtwin_version", std::string(kVersion)},
                                  {"command", ctx.command_line},
                                  {"created_utc", utc_now_iso8601()},
                                  {"training_patients", ids + " (synthetic)"},
                                  {"training_render", render.str()},
                                  {"training_volumes", std::to_string(r.volumes)}});
-          std::cout << "shape model " << r.detector.shape().modes() << " modes on a " << r.detector.shape().ures()
-                    << " x " << r.detector.shape().vres() << " grid\nwrote " << *out << "\n";
+          std::cout << "shape model " << r.detector.shape().modes() << " modes on a "
+                    << r.detector.shape().ures() << " x " << r.detector.shape().vres()
+                    << " grid\nwrote " << *out << "\n";
           return 0;
         }
         std::vector<Patient> patients;
@@ -135,9 +150,10 @@ void register_detect(CLI::App& app, Context& ctx) {
         std::vector<detection::TrainingVolume> data;
         for (const Patient& p : patients)
           for (std::size_t f = 0; f < p.images.size(); ++f)
-            if (p.sequence.frames[f].la_surface) data.push_back({&p.images[f], &p.sequence.frames[f]});
-        std::cout << "training on " << data.size() << " volumes of " << patients.size() << " patients"
-                  << std::endl;
+            if (p.sequence.frames[f].la_surface)
+              data.push_back({&p.images[f], &p.sequence.frames[f]});
+        std::cout << "training on " << data.size() << " volumes of " << patients.size()
+                  << " patients" << std::endl;
         const auto t0 = std::chrono::steady_clock::now();
         const detection::ValveDetector d = detection::ValveDetector::train(
             data, *o, [](const std::string& s) { std::cout << "  " << s << std::endl; });
@@ -173,18 +189,22 @@ void register_detect(CLI::App& app, Context& ctx) {
     auto force = std::make_shared<bool>(false);
     cmd->add_option("FILE", *file, "patient file (HDF5) with images")->required();
     cmd->add_option("--model", *model, "detector model (mvtwin train-detector)")->required();
-    cmd->add_option("--out", *out, "write the patient with its detection here instead of updating FILE");
+    cmd->add_option("--out", *out,
+                    "write the patient with its detection here instead of updating FILE");
     cmd->add_flag("--force", *force, "replace an earlier detection, or an existing --out");
     auto json_path = std::make_shared<std::string>();
-    cmd->add_option("--json", *json_path, "write the timing and, with a stored valve, the errors here");
+    cmd->add_option("--json", *json_path,
+                    "write the timing and, with a stored valve, the errors here");
     cmd->callback([=, &ctx] {
       ctx.run = [=, &ctx] {
         Patient p = read_patient(*file, true);
-        if (p.images.empty()) throw Error(*file + " holds no images (mvtwin render-tee, or import them)");
+        if (p.images.empty())
+          throw Error(*file + " holds no images (mvtwin render-tee, or import them)");
         const fs::path dest = out->empty() ? fs::path(*file) : fs::path(*out);
         if (!out->empty()) refuse_overwrite_path(dest, *force);
         if (out->empty() && p.detected && !*force)
-          throw Error(*file + " already holds a detection (--force replaces it, --out writes a copy)");
+          throw Error(*file +
+                      " already holds a detection (--force replaces it, --out writes a copy)");
         const detection::ValveDetector d = detection::ValveDetector::load(*model);
         std::vector<detection::DetectionInfo> info;
         const std::vector<ValveFrame> frames = d.detect_sequence(p.images, &info);
@@ -203,9 +223,9 @@ void register_detect(CLI::App& app, Context& ctx) {
         write_patient(dest, p);
         double total_s = 0;
         for (const auto& i : info) total_s += i.seconds;
-        std::cout << "detected " << frames.size() << " frames of " << p.id << (p.synthetic ? " [SYNTHETIC]" : "")
-                  << " in " << total_s << " s (" << total_s / static_cast<double>(frames.size())
-                  << " s per volume)\n";
+        std::cout << "detected " << frames.size() << " frames of " << p.id
+                  << (p.synthetic ? " [SYNTHETIC]" : "") << " in " << total_s << " s ("
+                  << total_s / static_cast<double>(frames.size()) << " s per volume)\n";
         // Against the valve stored in the file (for a virtual patient: its truth), when it has
         // the same frames.
         nlohmann::json report{{"patient_id", p.id},
@@ -221,13 +241,19 @@ void register_detect(CLI::App& app, Context& ctx) {
           nlohmann::json run{{"frames", studies::detection_errors(p, frames, info)}};
           const nlohmann::json s = studies::summarize_detections({&run});
           if (s["frames"].get<int>() > 0) {
-            std::printf("  against the stored valve%s: surface %.2f mm (SD %.2f over %d frames; open %.2f, closed "
-                        "%.2f), papillary tips %.2f mm\n",
-                        p.synthetic ? " (the virtual truth)" : "", s["error_mean_mm"].get<double>(),
-                        s["error_sd_mm"].get<double>(), s["frames"].get<int>(),
-                        s["by_phase"].value("open", nlohmann::json::object()).value("error_mean_mm", std::nan("")),
-                        s["by_phase"].value("closed", nlohmann::json::object()).value("error_mean_mm", std::nan("")),
-                        s["papillary_error_mm"].get<double>());
+            std::printf(
+                "  against the stored valve%s: surface %.2f mm (SD %.2f over %d frames; open %.2f, "
+                "closed "
+                "%.2f), papillary tips %.2f mm\n",
+                p.synthetic ? " (the virtual truth)" : "", s["error_mean_mm"].get<double>(),
+                s["error_sd_mm"].get<double>(), s["frames"].get<int>(),
+                s["by_phase"]
+                    .value("open", nlohmann::json::object())
+                    .value("error_mean_mm", std::nan("")),
+                s["by_phase"]
+                    .value("closed", nlohmann::json::object())
+                    .value("error_mean_mm", std::nan("")),
+                s["papillary_error_mm"].get<double>());
             report["against_stored"] = s;
             report["per_frame"] = run["frames"];
           }

@@ -37,10 +37,21 @@ cv::Mat slice_image(const ImageVolume& im, int axis, const ValveFrame* overlay, 
   for (int r = 0; r < rows; ++r) {
     for (int q = 0; q < cols; ++q) {
       int i = 0, j = 0, k = 0;
-      if (axis == 0) { i = c; j = q; k = r; }
-      else if (axis == 1) { i = q; j = c; k = r; }
-      else { i = q; j = r; k = c; }
-      m.at<unsigned char>(r, q) = static_cast<unsigned char>(std::clamp(im.at(i, j, k), 0.0f, 255.0f));
+      if (axis == 0) {
+        i = c;
+        j = q;
+        k = r;
+      } else if (axis == 1) {
+        i = q;
+        j = c;
+        k = r;
+      } else {
+        i = q;
+        j = r;
+        k = c;
+      }
+      m.at<unsigned char>(r, q) =
+          static_cast<unsigned char>(std::clamp(im.at(i, j, k), 0.0f, 255.0f));
     }
   }
   cv::Mat big;
@@ -55,8 +66,10 @@ cv::Mat slice_image(const ImageVolume& im, int axis, const ValveFrame* overlay, 
       const Eigen::Vector3d x = to_index * (P.row(p).transpose() - im.origin);
       if (std::abs(x[axis] - c) > 0.5) continue;
       const double col = axis == 0 ? x[1] : x[0], row = axis == 2 ? x[1] : x[2];
-      cv::circle(rgb, cv::Point(static_cast<int>((col + 0.5) * scale), static_cast<int>((row + 0.5) * scale)),
-                 std::max(1, scale / 2), cv::Scalar(40, 40, 230), cv::FILLED);
+      cv::circle(
+          rgb,
+          cv::Point(static_cast<int>((col + 0.5) * scale), static_cast<int>((row + 0.5) * scale)),
+          std::max(1, scale / 2), cv::Scalar(40, 40, 230), cv::FILLED);
     }
   }
   return rgb;
@@ -94,7 +107,8 @@ void register_render_tee(CLI::App& app, Context& ctx) {
   cmd->add_option("--probe-jitter", o->probe_jitter_deg,
                   "variation of the probe's pose between patients, degrees (0: the standard view)")
       ->default_val(o->probe_jitter_deg);
-  cmd->add_option("--seed", o->seed, "random seed (speckle, noise, drop-outs)")->default_val(o->seed);
+  cmd->add_option("--seed", o->seed, "random seed (speckle, noise, drop-outs)")
+      ->default_val(o->seed);
   cmd->callback([=, &ctx] {
     ctx.run = [=, &ctx] {
       Patient p = read_patient(*file, true);
@@ -121,13 +135,15 @@ void register_render_tee(CLI::App& app, Context& ctx) {
       // The file says what made its images (the patient's own provenance stays as it was).
       std::ostringstream made;
       made << "; images: synthetic TEE by '" << ctx.command_line << "' (voxel_mm=" << o->voxel_mm
-           << " noise=" << o->noise << " speckle=" << o->speckle << " dropout=" << o->dropout_fraction
+           << " noise=" << o->noise << " speckle=" << o->speckle
+           << " dropout=" << o->dropout_fraction
            << " attenuation_db_per_mm=" << o->attenuation_db_per_mm
            << " probe_jitter_deg=" << o->probe_jitter_deg << " seed=" << o->seed << ", mvtwin "
            << kVersion << ")";
       p.provenance.source += made.str();
       write_patient(dest, p);
-      std::cout << "wrote " << volumes.size() << " volumes into " << dest.string() << " (/images)\n";
+      std::cout << "wrote " << volumes.size() << " volumes into " << dest.string()
+                << " (/images)\n";
       if (!exp->empty()) {
         create_output_directory(*exp);
         const fs::path seq = fs::path(*exp) / (p.id + "_tee.seq.nrrd");
@@ -142,12 +158,15 @@ void register_render_tee(CLI::App& app, Context& ctx) {
           const char* phase = f == p.sequence.end_diastole ? "ed" : "closed";
           for (int axis = 0; axis < 3; ++axis) {
             for (bool overlay : {false, true}) {
-              const cv::Mat m = slice_image(volumes[f], axis, overlay ? &p.sequence.frames[f] : nullptr, scale);
-              const std::string name = p.id + "_" + phase + "_" + std::string("xyz").substr(axis, 1) +
+              const cv::Mat m =
+                  slice_image(volumes[f], axis, overlay ? &p.sequence.frames[f] : nullptr, scale);
+              const std::string name = p.id + "_" + phase + "_" +
+                                       std::string("xyz").substr(axis, 1) +
                                        (overlay ? "_overlay" : "") + ".png";
               const fs::path path = fs::path(*png) / name;
               write_atomically(path, [&](const fs::path& tmp) {
-                if (!cv::imwrite(tmp.string() + ".png", m)) throw Error(path.string() + ": cannot write PNG");
+                if (!cv::imwrite(tmp.string() + ".png", m))
+                  throw Error(path.string() + ": cannot write PNG");
                 fs::rename(tmp.string() + ".png", tmp);
               });
             }

@@ -1,11 +1,11 @@
 #include "mvtwin/core/calibration_file.h"
 
 #include "hdf5_io.h"
-#include "result_header.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
+#include "result_header.h"
 
 namespace mvtwin {
 namespace {
@@ -130,9 +130,8 @@ CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
   r.cache_hits = static_cast<int>(fit.read_scalar("cache_hits"));
   r.wall_s = fit.read_scalar("wall_s");
   const h5::Location par = root.open_group("parameters");
-  r.parameters.for_each([&](const std::string& name, double& x, const char*) {
-    x = par.read_scalar(name);
-  });
+  r.parameters.for_each(
+      [&](const std::string& name, double& x, const char*) { x = par.read_scalar(name); });
   if (!r.fitted.allFinite()) fit.fail("fitted", "non-finite fitted value");
   const h5::Location hist = root.open_group("history");
   r.history_simulation = hist.read_ints("simulation", &d, {-1}, "(H)");
@@ -140,8 +139,9 @@ CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
   r.history_error_mm = hist.read_doubles("error_mm", &d, {H}, "(H)");
   r.history_best_mm = hist.read_doubles("best_mm", &d, {H}, "(H)");
   const std::vector<double> x = hist.read_doubles("x", &d, {H, n}, "(H, n)");
-  r.history_x = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-      x.data(), H, n);
+  r.history_x =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          x.data(), H, n);
   return r;
 }
 

@@ -32,7 +32,8 @@ bool inside_polygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vecto
 ClosureMeasures measure_closure(
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& annulus,
     const TriangleMesh& leaflets, double res, double min_component_mm2) {
-  if (!(res > 0.01 && res <= 5.0)) throw Error("closure measures: resolution must be in (0.01, 5] mm");
+  if (!(res > 0.01 && res <= 5.0))
+    throw Error("closure measures: resolution must be in (0.01, 5] mm");
   if (leaflets.F.rows() == 0) throw Error("closure measures: empty leaflet surface");
   if (annulus.rows() < 3 || !annulus.allFinite())
     throw Error("closure measures: the annulus needs at least 3 finite points");
@@ -56,14 +57,16 @@ ClosureMeasures measure_closure(
   }
   const int nx = static_cast<int>(std::ceil((hi.x() - lo.x()) / res)) + 1;
   const int ny = static_cast<int>(std::ceil((hi.y() - lo.y()) / res)) + 1;
-  if (static_cast<double>(nx) * ny > 4e7) throw Error("closure measures: annulus too large for the resolution");
+  if (static_cast<double>(nx) * ny > 4e7)
+    throw Error("closure measures: annulus too large for the resolution");
   auto centre = [&](int i, int j) {
     return Eigen::Vector2d(lo.x() + (i + 0.5) * res, lo.y() + (j + 0.5) * res);
   };
   // 0 outside the opening, 1 open, 2 covered by a leaflet.
   std::vector<unsigned char> px(static_cast<size_t>(nx) * ny, 0);
   for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) px[static_cast<size_t>(j) * nx + i] = inside_polygon(poly, centre(i, j));
+    for (int i = 0; i < nx; ++i)
+      px[static_cast<size_t>(j) * nx + i] = inside_polygon(poly, centre(i, j));
   }
   for (Eigen::Index f = 0; f < leaflets.F.rows(); ++f) {
     const Eigen::Vector2d a = project(leaflets.V.row(leaflets.F(f, 0)).transpose()),
@@ -131,13 +134,15 @@ Coaptation measure_coaptation(const LeafletGrid& g, double contact_mm) {
   TriangleMesh posterior;
   posterior.V = all.V;
   int n = 0;
-  for (Eigen::Index k = 0; k < tags.size(); ++k) n += tags[k] == static_cast<int>(LeafletTag::kPosterior);
+  for (Eigen::Index k = 0; k < tags.size(); ++k)
+    n += tags[k] == static_cast<int>(LeafletTag::kPosterior);
   posterior.F.resize(n, 3);
   n = 0;
   for (Eigen::Index k = 0; k < tags.size(); ++k)
     if (tags[k] == static_cast<int>(LeafletTag::kPosterior)) posterior.F.row(n++) = all.F.row(k);
   const int U = g.ures(), V = g.vres(), half = U / 2;
-  const int u0 = static_cast<int>(std::ceil(0.15 * half)), u1 = static_cast<int>(std::floor(0.85 * half));
+  const int u0 = static_cast<int>(std::ceil(0.15 * half)),
+            u1 = static_cast<int>(std::floor(0.85 * half));
   std::vector<double> lengths;
   Coaptation c;
   int looked = 0;

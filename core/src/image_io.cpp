@@ -1,9 +1,9 @@
 #include "mvtwin/core/image_io.h"
 
 #include <algorithm>
-#include <cmath>
 #include <bit>
 #include <cctype>
+#include <cmath>
 #include <string>
 
 #include <Eigen/LU>
@@ -34,9 +34,12 @@ Format format_of(const std::filesystem::path& path) {
 
 std::vector<ImageVolume> read_image_series(const std::filesystem::path& path) {
   switch (format_of(path)) {
-    case Format::kNifti: return read_nifti_series(path);
-    case Format::kNrrd: return read_nrrd_series(path);
-    case Format::kMetaImage: return read_metaimage_series(path);
+    case Format::kNifti:
+      return read_nifti_series(path);
+    case Format::kNrrd:
+      return read_nrrd_series(path);
+    case Format::kMetaImage:
+      return read_metaimage_series(path);
   }
   return {};
 }
@@ -51,7 +54,8 @@ ImageVolume read_image(const std::filesystem::path& path) {
 }
 
 void write_image_series(const std::filesystem::path& path, const std::vector<ImageVolume>& s) {
-  static_assert(std::endian::native == std::endian::little, "the writers assume a little-endian host");
+  static_assert(std::endian::native == std::endian::little,
+                "the writers assume a little-endian host");
   const std::string what = path.string();
   const Format format = format_of(path);
   if (s.empty()) throw Error(what + ": no image to write");
@@ -74,8 +78,12 @@ void write_image_series(const std::filesystem::path& path, const std::vector<Ima
       if (s.size() != 1) throw Error(what + ": NIfTI output is 3D only; write a series as .nrrd");
       write_nifti(path, g);
       return;
-    case Format::kNrrd: write_nrrd_series(path, s); return;
-    case Format::kMetaImage: write_metaimage_series(path, s); return;
+    case Format::kNrrd:
+      write_nrrd_series(path, s);
+      return;
+    case Format::kMetaImage:
+      write_metaimage_series(path, s);
+      return;
   }
 }
 

@@ -41,7 +41,8 @@ VoxelType met_type(const std::string& t, const std::string& what) {
 std::vector<double> numbers(const std::string& s, std::size_t n, const std::string& what) {
   const std::vector<std::string> w = raw::words(s);
   if (w.size() != n)
-    throw Error(what + ": expected " + std::to_string(n) + " values, found " + std::to_string(w.size()));
+    throw Error(what + ": expected " + std::to_string(n) + " values, found " +
+                std::to_string(w.size()));
   std::vector<double> v;
   for (const auto& x : w) v.push_back(raw::number(x, what));
   return v;
@@ -69,7 +70,8 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
     pos = std::min(end + 1, bytes.size());
     if (line.empty()) continue;
     const std::size_t eq = line.find('=');
-    if (eq == std::string::npos) throw Error(what + ": malformed MetaImage header line '" + line.substr(0, 60) + "'");
+    if (eq == std::string::npos)
+      throw Error(what + ": malformed MetaImage header line '" + line.substr(0, 60) + "'");
     const std::string key = lower(trim(line.substr(0, eq)));
     field[key] = trim(line.substr(eq + 1));
     if (key == "elementdatafile") {
@@ -92,7 +94,8 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
   if (!field.count("elementtype")) throw Error(what + ": MetaImage header lacks ElementType");
   const std::vector<double> ds = numbers(field["dimsize"], nd, what + " (DimSize)");
   for (double d : ds)
-    if (!(d >= 1 && d < 1e6 && d == std::floor(d))) throw Error(what + ": bad DimSize entry " + fmt(d));
+    if (!(d >= 1 && d < 1e6 && d == std::floor(d)))
+      throw Error(what + ": bad DimSize entry " + fmt(d));
   const VoxelType type = met_type(field["elementtype"], what);
   std::vector<double> sp(nd, 1.0), off(nd, 0.0), tm;
   for (const char* k : {"elementspacing", "elementsize"})
@@ -133,23 +136,27 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
   if (lower(df) == "local") {
     data = bytes.substr(pos);
   } else {
-    if (lower(df).rfind("list", 0) == 0 || df.find('%') != std::string::npos || raw::words(df).size() > 1)
+    if (lower(df).rfind("list", 0) == 0 || df.find('%') != std::string::npos ||
+        raw::words(df).size() > 1)
       throw Error(what + ": multi-file MetaImage data ('" + df + "') is not supported");
     fs::path dp = df;
     if (dp.is_relative()) dp = path.parent_path() / dp;
     data = raw::read_file_bytes(dp);
     if (field.count("headersize")) {
       const long hs = static_cast<long>(raw::number(field["headersize"], what + " (HeaderSize)"));
-      if (hs == -1 && data.size() >= need) data.erase(0, data.size() - need);
-      else if (hs > 0 && static_cast<std::size_t>(hs) <= data.size()) data.erase(0, static_cast<std::size_t>(hs));
-      else if (hs != 0 && hs != -1) throw Error(what + ": HeaderSize goes past the data");
+      if (hs == -1 && data.size() >= need)
+        data.erase(0, data.size() - need);
+      else if (hs > 0 && static_cast<std::size_t>(hs) <= data.size())
+        data.erase(0, static_cast<std::size_t>(hs));
+      else if (hs != 0 && hs != -1)
+        throw Error(what + ": HeaderSize goes past the data");
     }
   }
   if (field.count("compresseddata") && truth(field["compresseddata"])) {
     data = raw::inflate(data, need, what);
   } else if (data.size() < need) {
-    throw Error(what + ": truncated voxel data (expected " + std::to_string(need) + " bytes, found " +
-                std::to_string(data.size()) + ")");
+    throw Error(what + ": truncated voxel data (expected " + std::to_string(need) +
+                " bytes, found " + std::to_string(data.size()) + ")");
   }
   bool big = false;
   for (const char* k : {"elementbyteordermsb", "binarydatabyteordermsb"})
@@ -179,7 +186,8 @@ void write_metaimage_series(const fs::path& path, const std::vector<ImageVolume>
   }
   const ImageVolume& g = s.front();
   std::ostringstream h;
-  h << "ObjectType = Image\nNDims = " << nd << "\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+  h << "ObjectType = Image\nNDims = " << nd
+    << "\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
     << "CompressedData = True\n";
   h << "TransformMatrix =";
   for (int a = 0; a < nd; ++a) {
@@ -192,19 +200,21 @@ void write_metaimage_series(const fs::path& path, const std::vector<ImageVolume>
   const Eigen::Vector3d o = kLpsToRas.cwiseProduct(g.origin);
   h << "\nOffset = " << fmt(o[0]) << " " << fmt(o[1]) << " " << fmt(o[2]);
   if (series) h << " " << fmt(s[0].time_s);
-  h << "\nElementSpacing = " << fmt(g.spacing[0]) << " " << fmt(g.spacing[1]) << " " << fmt(g.spacing[2]);
+  h << "\nElementSpacing = " << fmt(g.spacing[0]) << " " << fmt(g.spacing[1]) << " "
+    << fmt(g.spacing[2]);
   if (series) h << " " << fmt(dt);
   h << "\nDimSize = " << g.size[0] << " " << g.size[1] << " " << g.size[2];
   if (series) h << " " << s.size();
   std::vector<float> values;
   values.reserve(g.num_voxels() * s.size());
   for (const auto& im : s) values.insert(values.end(), im.data.begin(), im.data.end());
-  const std::string z =
-      raw::deflate(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float), false);
+  const std::string z = raw::deflate(reinterpret_cast<const char*>(values.data()),
+                                     values.size() * sizeof(float), false);
   h << "\nCompressedDataSize = " << z.size() << "\nElementType = MET_FLOAT\n";
   const bool local = lower(path.extension().string()) == ".mha";
   const fs::path data_path = fs::path(path).replace_extension(".zraw");
-  h << "ElementDataFile = " << (local ? std::string("LOCAL") : data_path.filename().string()) << "\n";
+  h << "ElementDataFile = " << (local ? std::string("LOCAL") : data_path.filename().string())
+    << "\n";
   auto write_bytes = [&](const fs::path& p, const std::string& a, const std::string& b) {
     write_atomically(p, [&](const fs::path& tmp) {
       std::ofstream f(tmp, std::ios::binary);

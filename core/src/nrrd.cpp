@@ -35,7 +35,8 @@ VoxelType nrrd_type(const std::string& name, const std::string& what) {
       t == "uint16_t")
     return VoxelType::kU16;
   if (t == "int" || t == "signed int" || t == "int32" || t == "int32_t") return VoxelType::kI32;
-  if (t == "uint" || t == "unsigned int" || t == "uint32" || t == "uint32_t") return VoxelType::kU32;
+  if (t == "uint" || t == "unsigned int" || t == "uint32" || t == "uint32_t")
+    return VoxelType::kU32;
   if (t == "float") return VoxelType::kF32;
   if (t == "double") return VoxelType::kF64;
   throw Error(what + ": unsupported NRRD type '" + trim(name) + "'");
@@ -186,8 +187,10 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     std::vector<std::string> sp;
     if (field.count("spacings")) sp = raw::words(field["spacings"]);
     for (int a = 0; a < dim; ++a) {
-      const double s = a < static_cast<int>(sp.size()) ? raw::number(sp[a], what + " (spacings)") : 1.0;
-      const bool list = field.count("kinds") && a < static_cast<int>(raw::words(field["kinds"]).size()) &&
+      const double s =
+          a < static_cast<int>(sp.size()) ? raw::number(sp[a], what + " (spacings)") : 1.0;
+      const bool list = field.count("kinds") &&
+                        a < static_cast<int>(raw::words(field["kinds"]).size()) &&
                         (lower(raw::words(field["kinds"])[a]) == "list" ||
                          lower(raw::words(field["kinds"])[a]) == "time");
       if (dim == 4 && (list || !std::isfinite(s)) && frame_axis < 0) {
@@ -235,9 +238,10 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     data.erase(0, p);
   }
   const std::string encoding = field.count("encoding") ? lower(field["encoding"]) : "raw";
-  const long byte_skip = field.count("byteskip")
-                             ? static_cast<long>(raw::number(field["byteskip"], what + " (byte skip)"))
-                             : 0;
+  const long byte_skip =
+      field.count("byteskip")
+          ? static_cast<long>(raw::number(field["byteskip"], what + " (byte skip)"))
+          : 0;
   const std::size_t need_bytes = total * static_cast<std::size_t>(raw::bytes_of(type));
   std::vector<float> values;
   if (encoding == "raw" || encoding == "gzip" || encoding == "gz") {
@@ -263,11 +267,13 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     values.resize(total);
     for (std::size_t i = 0; i < total; ++i) {
       double v;
-      if (!(is >> v)) throw Error(what + ": ascii data ends after " + std::to_string(i) + " values");
+      if (!(is >> v))
+        throw Error(what + ": ascii data ends after " + std::to_string(i) + " values");
       values[i] = static_cast<float>(v);
     }
   } else {
-    throw Error(what + ": unsupported NRRD encoding '" + field["encoding"] + "' (raw, gzip, ascii)");
+    throw Error(what + ": unsupported NRRD encoding '" + field["encoding"] +
+                "' (raw, gzip, ascii)");
   }
 
   // Frame times: Slicer's per-item index values, else the axis spacing, else the frame index.
@@ -287,10 +293,12 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     // Slicer writes the index unit beside the values ("s", or "ms" for some ultrasound
     // sequences); times are kept in s.
     const std::string unit_key = "axis " + std::to_string(frame_axis) + " index unit";
-    const double scale = keyvalue.count(unit_key) && lower(trim(keyvalue[unit_key])) == "ms" ? 1e-3 : 1.0;
+    const double scale =
+        keyvalue.count(unit_key) && lower(trim(keyvalue[unit_key])) == "ms" ? 1e-3 : 1.0;
     for (long f = 0; f < nt; ++f) {
-      times[f] = static_cast<long>(tv.size()) == nt ? scale * raw::number(tv[f], what + " (" + key + ")")
-                                                    : f * dt;
+      times[f] = static_cast<long>(tv.size()) == nt
+                     ? scale * raw::number(tv[f], what + " (" + key + ")")
+                     : f * dt;
     }
   }
   if (key_values) *key_values = keyvalue;
@@ -300,7 +308,8 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     im.time_s = times[f];
     im.data.resize(nvox);
     if (frame_axis == 0) {
-      for (std::size_t v = 0; v < nvox; ++v) im.data[v] = values[static_cast<std::size_t>(f) + nt * v];
+      for (std::size_t v = 0; v < nvox; ++v)
+        im.data[v] = values[static_cast<std::size_t>(f) + nt * v];
     } else {
       std::copy_n(values.begin() + static_cast<long>(nvox) * f, nvox, im.data.begin());
     }
@@ -334,8 +343,8 @@ void write_nrrd_series(const fs::path& path, const std::vector<ImageVolume>& s) 
   std::vector<float> values(nvox * s.size());
   for (std::size_t f = 0; f < s.size(); ++f)
     for (std::size_t v = 0; v < nvox; ++v) values[f + s.size() * v] = s[f].data[v];
-  const std::string z =
-      raw::deflate(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float), true);
+  const std::string z = raw::deflate(reinterpret_cast<const char*>(values.data()),
+                                     values.size() * sizeof(float), true);
   write_atomically(path, [&](const fs::path& tmp) {
     std::ofstream f(tmp, std::ios::binary);
     f << h.str();

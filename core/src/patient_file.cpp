@@ -118,8 +118,9 @@ ValveSequence read_sequence(const h5::Location& root) {
   const auto lm = g.read_doubles("landmarks", &d, {F, 9, 3}, "(F, 9, 3)");
   const auto lm_obs = g.read_ints("landmark_observed", &d, {F, 9}, "(F, 9)");
   // Files written before landmark_assumed existed have none assumed.
-  const auto lm_assumed = g.exists("landmark_assumed") ? g.read_ints("landmark_assumed", &d, {F, 9}, "(F, 9)")
-                                                       : decltype(lm_obs)(lm_obs.size(), 0);
+  const auto lm_assumed = g.exists("landmark_assumed")
+                              ? g.read_ints("landmark_assumed", &d, {F, 9}, "(F, 9)")
+                              : decltype(lm_obs)(lm_obs.size(), 0);
   const auto ann = g.read_doubles("annulus", &d, {F, U, 3}, "(F, ures, 3)");
   const auto leaf_obs = g.read_ints("leaflet_observed", &d, {F}, "(F)");
   const auto surf = g.read_doubles("la_surface", &d, {F, V, U, 3}, "(F, vres, ures, 3)");
@@ -324,7 +325,8 @@ void write_patient(const std::filesystem::path& path, const Patient& patient) {
                 "' has a virtual ground truth but is not marked synthetic");
   }
   if (patient.detected)
-    patient.detected->validate((path.string() + ": patient '" + patient.id + "', detected sequence").c_str());
+    patient.detected->validate(
+        (path.string() + ": patient '" + patient.id + "', detected sequence").c_str());
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::Location root = h5::Location::create_file(tmp);
     root.attr("format", std::string(kPatientFormat));
@@ -388,7 +390,8 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
     std::vector<int> legacy;
     p.truth = read_truth(root, &legacy);
     for (const int k : legacy) {
-      if (k < 0 || k >= 28) root.fail("ground_truth/ruptured_marginal_chordae", "index out of 0..27");
+      if (k < 0 || k >= 28)
+        root.fail("ground_truth/ruptured_marginal_chordae", "index out of 0..27");
       const ChordaeRupture r = marginal_chorda_rupture(k, 28);
       p.sequence.ruptured_chordae.push_back(r);
       if (p.detected) p.detected->ruptured_chordae.push_back(r);

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <bit>
 #include <cctype>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -110,14 +110,30 @@ std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian
   const bool swap = big_endian != host_big;
   std::vector<float> out(n);
   switch (t) {
-    case VoxelType::kU8: convert<std::uint8_t>(bytes, false, n, &out); break;
-    case VoxelType::kI8: convert<std::int8_t>(bytes, false, n, &out); break;
-    case VoxelType::kU16: convert<std::uint16_t>(bytes, swap, n, &out); break;
-    case VoxelType::kI16: convert<std::int16_t>(bytes, swap, n, &out); break;
-    case VoxelType::kU32: convert<std::uint32_t>(bytes, swap, n, &out); break;
-    case VoxelType::kI32: convert<std::int32_t>(bytes, swap, n, &out); break;
-    case VoxelType::kF32: convert<float>(bytes, swap, n, &out); break;
-    case VoxelType::kF64: convert<double>(bytes, swap, n, &out); break;
+    case VoxelType::kU8:
+      convert<std::uint8_t>(bytes, false, n, &out);
+      break;
+    case VoxelType::kI8:
+      convert<std::int8_t>(bytes, false, n, &out);
+      break;
+    case VoxelType::kU16:
+      convert<std::uint16_t>(bytes, swap, n, &out);
+      break;
+    case VoxelType::kI16:
+      convert<std::int16_t>(bytes, swap, n, &out);
+      break;
+    case VoxelType::kU32:
+      convert<std::uint32_t>(bytes, swap, n, &out);
+      break;
+    case VoxelType::kI32:
+      convert<std::int32_t>(bytes, swap, n, &out);
+      break;
+    case VoxelType::kF32:
+      convert<float>(bytes, swap, n, &out);
+      break;
+    case VoxelType::kF64:
+      convert<double>(bytes, swap, n, &out);
+      break;
   }
   return out;
 }

@@ -24,7 +24,8 @@ std::string deflate(const char* data, std::size_t bytes, bool gzip);
 
 /// `count` voxels of type `t` from `bytes` (at least count * bytes_of(t) of them), converted to
 /// float; `big_endian` for the file's byte order.
-std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian, std::size_t count);
+std::vector<float> decode(const std::string& bytes, VoxelType t, bool big_endian,
+                          std::size_t count);
 
 /// Lower-case copy (ASCII).
 std::string lower(std::string s);

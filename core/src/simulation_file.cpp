@@ -1,11 +1,11 @@
 #include "mvtwin/core/simulation_file.h"
 
 #include "hdf5_io.h"
-#include "result_header.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
+#include "result_header.h"
 
 namespace mvtwin {
 namespace {
@@ -13,8 +13,8 @@ namespace {
 constexpr const char* kFormat = "mvtwin-simulation";
 constexpr long kFormatVersion = 1;
 
-std::vector<double> flat(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3,
-                                                              Eigen::RowMajor>>& m) {
+std::vector<double> flat(
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& m) {
   return std::vector<double>(m.data(), m.data() + m.size());
 }
 
@@ -48,9 +48,8 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
     root.attr("units_stress", std::string(units::kStress));
 
     const h5::Location par = root.create_group("parameters", true);
-    r.parameters.for_each([&](const std::string& n, double v, const char* unit) {
-      par.write_scalar(n, v, unit);
-    });
+    r.parameters.for_each(
+        [&](const std::string& n, double v, const char* unit) { par.write_scalar(n, v, unit); });
     const h5::Location sum = root.create_group("summary", true);
     for (const auto& [k, v] : r.summary) sum.write_scalar(k, v, nullptr);
 
@@ -68,7 +67,8 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
     std::vector<double> la;
     la.reserve(S * static_cast<size_t>(U * V * 3));
     for (const LeafletGrid& g : r.la_surface) {
-      if (g.ures() != U || g.vres() != V) throw Error(path.string() + ": surfaces on different grids");
+      if (g.ures() != U || g.vres() != V)
+        throw Error(path.string() + ": surfaces on different grids");
       const auto f = flat(g.points());
       la.insert(la.end(), f.begin(), f.end());
     }
@@ -133,16 +133,20 @@ SimulationRecord read_simulation_file(const std::filesystem::path& path) {
   const h5::Location fin = root.open_group("final");
   const std::vector<double> X = fin.read_doubles("rest_positions", &d, {-1, 3}, "(N, 3)");
   const long N = static_cast<long>(d[0]);
-  r.mesh.V = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(X.data(), N, 3);
+  r.mesh.V =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(X.data(), N, 3);
   const std::vector<double> Y = fin.read_doubles("final_positions", &d, {N, 3}, "(N, 3)");
-  r.final_positions = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(Y.data(), N, 3);
+  r.final_positions =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(Y.data(), N, 3);
   const std::vector<int> T = fin.read_ints("tets", &d, {-1, 4}, "(E, 4)");
   const long E = static_cast<long>(d[0]);
-  r.mesh.T = Eigen::Map<const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor>>(T.data(), E, 4);
+  r.mesh.T =
+      Eigen::Map<const Eigen::Matrix<int, Eigen::Dynamic, 4, Eigen::RowMajor>>(T.data(), E, 4);
   const std::vector<int> tag = fin.read_ints("tag", &d, {E}, "(E)");
   r.mesh.tag = Eigen::Map<const Eigen::VectorXi>(tag.data(), E);
   const std::vector<double> fib = fin.read_doubles("fibre", &d, {E, 3}, "(E, 3)");
-  r.mesh.fibre = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(fib.data(), E, 3);
+  r.mesh.fibre =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(fib.data(), E, 3);
   const std::vector<double> st = fin.read_doubles("strain_max_principal", &d, {E}, "(E)");
   r.element_strain = Eigen::Map<const Eigen::VectorXd>(st.data(), E);
   const std::vector<double> ss = fin.read_doubles("stress_von_mises", &d, {E}, "(E)");

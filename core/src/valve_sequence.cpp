@@ -113,7 +113,8 @@ std::string ValveSequence::assumed_landmarks() const {
   std::string out;
   for (int l = 0; l < kNumLandmarks; ++l) {
     bool any = false;
-    for (const ValveFrame& f : frames) any = any || (f.landmark_observed[l] && f.landmark_assumed[l]);
+    for (const ValveFrame& f : frames)
+      any = any || (f.landmark_observed[l] && f.landmark_assumed[l]);
     if (any) out += (out.empty() ? "" : ", ") + std::string(kLandmarkNames[l]);
   }
   return out;

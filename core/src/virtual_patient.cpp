@@ -224,9 +224,9 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     }
     const double leaflet_length = anterior ? d.al_length : d.pl_length;
     const double L = d.commissure_length + (leaflet_length - d.commissure_length) * g;
-    const double phi_leaf =
-        anterior ? d.al_opening_ed + (d.al_opening - d.al_opening_ed) * openness
-                 : d.pl_opening_ed + (d.pl_opening - d.pl_opening_ed) * openness;
+    const double phi_leaf = anterior
+                                ? d.al_opening_ed + (d.al_opening - d.al_opening_ed) * openness
+                                : d.pl_opening_ed + (d.pl_opening - d.pl_opening_ed) * openness;
     const double phi_c = 84.0 * kDeg;  // commissures hang nearly vertically
     const double phi = std::min(phi_c + (phi_leaf - phi_c) * g, 88.0 * kDeg);
 

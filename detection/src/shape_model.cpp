@@ -35,7 +35,8 @@ Points3 placing_landmarks(const ValveFrame& f) {
   Points3 L(static_cast<Eigen::Index>(kPlacingLandmarks.size()), 3);
   for (std::size_t i = 0; i < kPlacingLandmarks.size(); ++i) {
     if (!f.observed(kPlacingLandmarks[i]))
-      throw Error("shape model: landmark " + std::string(name(kPlacingLandmarks[i])) + " is not observed");
+      throw Error("shape model: landmark " + std::string(name(kPlacingLandmarks[i])) +
+                  " is not observed");
     L.row(static_cast<Eigen::Index>(i)) = f.landmark(kPlacingLandmarks[i]).transpose();
   }
   return L;
@@ -45,11 +46,14 @@ namespace {
 
 Points3 transformed(const Points3& P, const Similarity& s) {
   Points3 out(P.rows(), 3);
-  for (Eigen::Index i = 0; i < P.rows(); ++i) out.row(i) = s.apply(P.row(i).transpose()).transpose();
+  for (Eigen::Index i = 0; i < P.rows(); ++i)
+    out.row(i) = s.apply(P.row(i).transpose()).transpose();
   return out;
 }
 
-Eigen::VectorXd flat(const Points3& P) { return Eigen::Map<const Eigen::VectorXd>(P.data(), P.size()); }
+Eigen::VectorXd flat(const Points3& P) {
+  return Eigen::Map<const Eigen::VectorXd>(P.data(), P.size());
+}
 
 Points3 unflat(const Eigen::VectorXd& v) {
   return Eigen::Map<const Points3>(v.data(), v.size() / 3, 3);
@@ -79,7 +83,9 @@ ShapeModel ShapeModel::train(const std::vector<const ValveFrame*>& frames, doubl
     surfaces.push_back(g.points());
   }
   const int n = static_cast<int>(landmarks.size());
-  if (n < 3) throw Error("shape model: needs at least 3 frames with a surface and landmarks, got " + std::to_string(n));
+  if (n < 3)
+    throw Error("shape model: needs at least 3 frames with a surface and landmarks, got " +
+                std::to_string(n));
   // Generalized Procrustes of the landmarks: the mean configuration, centred at the origin
   // with unit RMS radius.
   Points3 mean = landmarks.front();
@@ -104,7 +110,8 @@ ShapeModel ShapeModel::train(const std::vector<const ValveFrame*>& frames, doubl
   m.mean_landmarks_ = mean;
   const Eigen::Index d = static_cast<Eigen::Index>(ures) * vres * 3;
   Eigen::MatrixXd X(d, n);
-  for (int i = 0; i < n; ++i) X.col(i) = flat(transformed(surfaces[i], fit_similarity(landmarks[i], mean)));
+  for (int i = 0; i < n; ++i)
+    X.col(i) = flat(transformed(surfaces[i], fit_similarity(landmarks[i], mean)));
   m.mean_ = X.rowwise().mean();
   X.colwise() -= m.mean_;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(X, Eigen::ComputeThinU);
@@ -112,7 +119,8 @@ ShapeModel ShapeModel::train(const std::vector<const ValveFrame*>& frames, doubl
   const double total = var.sum();
   int k = 0;
   double kept = 0;
-  while (k < var.size() && total > 0 && kept < variance_kept * total && var[k] > 1e-12 * total) kept += var[k++];
+  while (k < var.size() && total > 0 && kept < variance_kept * total && var[k] > 1e-12 * total)
+    kept += var[k++];
   m.basis_ = svd.matrixU().leftCols(k);
   m.sd_ = var.head(k).cwiseSqrt();
   return m;
@@ -140,7 +148,8 @@ Points3 ShapeModel::constrain(const Points3& points, const Similarity& to_image,
 
 std::vector<double> ShapeModel::serialize() const {
   std::vector<double> v = {static_cast<double>(ures_), static_cast<double>(vres_),
-                           static_cast<double>(mean_landmarks_.rows()), static_cast<double>(modes())};
+                           static_cast<double>(mean_landmarks_.rows()),
+                           static_cast<double>(modes())};
   v.insert(v.end(), mean_landmarks_.data(), mean_landmarks_.data() + mean_landmarks_.size());
   v.insert(v.end(), mean_.data(), mean_.data() + mean_.size());
   v.insert(v.end(), basis_.data(), basis_.data() + basis_.size());

@@ -40,12 +40,14 @@ ValveAxes valve_axes(const ValveFrame& f) {
   if (!(v.a.norm() > 1e-9)) throw Error("synthetic TEE: the annulus has no anterior direction");
   v.a.normalize();
   v.l = v.n.cross(v.a);
-  for (int i = 0; i < f.annulus.rows(); ++i) v.radius += (f.annulus.row(i).transpose() - v.c).norm();
+  for (int i = 0; i < f.annulus.rows(); ++i)
+    v.radius += (f.annulus.row(i).transpose() - v.c).norm();
   v.radius /= static_cast<double>(f.annulus.rows());
   return v;
 }
 
-double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                        const Eigen::Vector3d& b) {
   const Eigen::Vector3d ab = b - a;
   const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
   return (p - a - t * ab).norm();
@@ -60,7 +62,8 @@ double band(double s, double w) {
 /// The backscatter (relative intensity) of one frame's anatomy.
 class Scene {
  public:
-  Scene(const ValveFrame& f, double blood) : axes_(valve_axes(f)), blood_(blood), annulus_(f.annulus) {
+  Scene(const ValveFrame& f, double blood)
+      : axes_(valve_axes(f)), blood_(blood), annulus_(f.annulus) {
     if (f.la_surface) {
       mesh_ = f.la_surface->triangulate();
       bvh_ = std::make_unique<TriangleBvh>(mesh_);
@@ -69,7 +72,8 @@ class Scene {
     }
     const ValveAxes& v = axes_;
     for (int k = 0; k < 2; ++k) {
-      const Landmark tip = k == 0 ? Landmark::kAnterolateralPapillaryTip : Landmark::kPosteromedialPapillaryTip;
+      const Landmark tip =
+          k == 0 ? Landmark::kAnterolateralPapillaryTip : Landmark::kPosteromedialPapillaryTip;
       if (f.observed(tip)) papillary_.push_back(f.landmark(tip));
     }
     aorta_base_ = v.c + (v.radius + 9.0) * v.a - 4.0 * v.n;
@@ -98,8 +102,9 @@ class Scene {
     if (std::abs(z) < 8.0 && std::abs(rho - R) < 8.0) {
       double dmin = 1e9;
       for (int i = 0; i < annulus_.rows(); ++i)
-        dmin = std::min(dmin, segment_distance(q, annulus_.row(i).transpose(),
-                                               annulus_.row((i + 1) % annulus_.rows()).transpose()));
+        dmin =
+            std::min(dmin, segment_distance(q, annulus_.row(i).transpose(),
+                                            annulus_.row((i + 1) % annulus_.rows()).transpose()));
       e = std::max(e, 0.08 * band(dmin, 2.0));
     }
     // Aortic root: a tube anterior to the anterior leaflet.
@@ -147,14 +152,16 @@ std::vector<double> gaussian_kernel(double sigma) {
   const int h = std::max(1, static_cast<int>(std::ceil(3.0 * sigma)));
   std::vector<double> k(2 * h + 1);
   double s = 0;
-  for (int i = -h; i <= h; ++i) s += k[i + h] = std::exp(-0.5 * i * i / std::max(sigma * sigma, 1e-6));
+  for (int i = -h; i <= h; ++i)
+    s += k[i + h] = std::exp(-0.5 * i * i / std::max(sigma * sigma, 1e-6));
   for (double& x : k) x /= s;
   return k;
 }
 
 /// Separable blur of a (n0 fastest, n1, n2) array along one axis, zero outside.
 template <typename T>
-void blur_axis(std::vector<T>* a, const std::array<int, 3>& n, int axis, const std::vector<double>& k) {
+void blur_axis(std::vector<T>* a, const std::array<int, 3>& n, int axis,
+               const std::vector<double>& k) {
   const int h = static_cast<int>(k.size() / 2);
   const std::array<std::size_t, 3> stride = {1, static_cast<std::size_t>(n[0]),
                                              static_cast<std::size_t>(n[0]) * n[1]};
@@ -183,12 +190,16 @@ std::string TeeRenderOptions::invalid() const {
   if (!(voxel_mm >= 0.3 && voxel_mm <= 3.0)) return "voxel_mm must be in [0.3, 3] mm";
   if (!(box_mm >= 20 && box_mm <= 200)) return "box_mm must be in [20, 200] mm";
   if (!(sector_deg >= 20 && sector_deg <= 110)) return "sector_deg must be in [20, 110] degrees";
-  if (!(probe_depth_mm >= 30 && probe_depth_mm <= 200)) return "probe_depth_mm must be in [30, 200] mm";
-  if (!(probe_jitter_deg >= 0 && probe_jitter_deg <= 30)) return "probe_jitter_deg must be in [0, 30]";
+  if (!(probe_depth_mm >= 30 && probe_depth_mm <= 200))
+    return "probe_depth_mm must be in [30, 200] mm";
+  if (!(probe_jitter_deg >= 0 && probe_jitter_deg <= 30))
+    return "probe_jitter_deg must be in [0, 30]";
   if (!(axial_psf_mm > 0 && lateral_psf_mm > 0 && axial_psf_mm < 10 && lateral_psf_mm < 10))
     return "PSF widths must be in (0, 10) mm";
-  if (!(attenuation_db_per_mm >= 0 && attenuation_db_per_mm < 2)) return "attenuation must be in [0, 2) dB/mm";
-  if (!(dynamic_range_db >= 10 && dynamic_range_db <= 100)) return "dynamic range must be in [10, 100] dB";
+  if (!(attenuation_db_per_mm >= 0 && attenuation_db_per_mm < 2))
+    return "attenuation must be in [0, 2) dB/mm";
+  if (!(dynamic_range_db >= 10 && dynamic_range_db <= 100))
+    return "dynamic range must be in [10, 100] dB";
   if (!(speckle >= 0 && speckle <= 1)) return "speckle must be in [0, 1]";
   if (!(noise >= 0 && noise < 10)) return "noise must be in [0, 10)";
   if (!(dropout_fraction >= 0 && dropout_fraction < 1)) return "dropout_fraction must be in [0, 1)";
@@ -210,7 +221,8 @@ TeeGeometry tee_geometry(const ValveSequence& seq, const TeeRenderOptions& o) {
   if (o.probe_jitter_deg > 0) {
     Rng rng(o.seed ^ 0x9e3779b97f4a7c15ull);
     const double j = o.probe_jitter_deg * kDeg;
-    const Eigen::Vector3d tilt_axis = to_probe.cross(Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal())).normalized();
+    const Eigen::Vector3d tilt_axis =
+        to_probe.cross(Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal())).normalized();
     to_probe = Eigen::AngleAxisd(rng.uniform(-j, j), tilt_axis) * to_probe;
     spin = rng.uniform(-2 * j, 2 * j);
     depth += rng.uniform(-8, 8);
@@ -247,18 +259,22 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
   // The ranges that cross the cube: from the apex's distance to it to its farthest corner.
   const double edge = (g.grid.size[0] - 1) * o.voxel_mm;
   const Eigen::Vector3d apex_local = g.axes.transpose() * (g.apex - g.grid.origin);
-  const double r0 = std::max(2.0, (apex_local - apex_local.cwiseMax(0.0).cwiseMin(edge)).norm() - 3.0);
+  const double r0 =
+      std::max(2.0, (apex_local - apex_local.cwiseMax(0.0).cwiseMin(edge)).norm() - 3.0);
   const double r1 = std::min(D + half_box, r0 + 2 * half_box + 6.0);
   const double dr = std::min(0.5, o.axial_psf_mm);
   const double dth = 0.8 * o.lateral_psf_mm / D;  // rad: lateral samples finer than the PSF
   // Only the beams that cross the output cube are formed.
   double half_angle = 0.0;
   for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d v = g.axes.transpose() *
+    const Eigen::Vector3d v =
+        g.axes.transpose() *
         (g.grid.position((c & 1) * (g.grid.size[0] - 1), ((c >> 1) & 1) * (g.grid.size[1] - 1),
-                         ((c >> 2) & 1) * (g.grid.size[2] - 1)) - g.apex);
-    half_angle = v.z() <= 1e-6 ? 10.0 : std::max({half_angle, std::abs(std::atan(v.x() / v.z())),
-                                                   std::abs(std::atan(v.y() / v.z()))});
+                         ((c >> 2) & 1) * (g.grid.size[2] - 1)) -
+         g.apex);
+    half_angle = v.z() <= 1e-6 ? 10.0
+                               : std::max({half_angle, std::abs(std::atan(v.x() / v.z())),
+                                           std::abs(std::atan(v.y() / v.z()))});
     if (half_angle >= 10.0) break;
   }
   half_angle = std::min(0.5 * o.sector_deg * kDeg, half_angle + 2 * dth);
@@ -279,7 +295,8 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
   for (int i2 = 0; i2 < n[2]; ++i2) {
     for (int i1 = 0; i1 < n[1]; ++i1) {
       const Eigen::Vector3d b = ray(i1, i2);
-      const std::size_t base = static_cast<std::size_t>(n[0]) * (i1 + static_cast<std::size_t>(n[1]) * i2);
+      const std::size_t base =
+          static_cast<std::size_t>(n[0]) * (i1 + static_cast<std::size_t>(n[1]) * i2);
       for (int i0 = 0; i0 < n[0]; ++i0) {
         const Eigen::Vector3d q = g.apex + (r0 + i0 * dr) * b;
         const Eigen::Vector3d local = g.axes.transpose() * (q - box_lo);
@@ -318,7 +335,8 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
     blur_axis(&field, m, 0, ks);
     blur_axis(&field, m, 1, ks);
     std::vector<double> sorted = field;
-    const auto k = static_cast<std::ptrdiff_t>(o.dropout_fraction * static_cast<double>(sorted.size()));
+    const auto k =
+        static_cast<std::ptrdiff_t>(o.dropout_fraction * static_cast<double>(sorted.size()));
     std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
     const double threshold = sorted[static_cast<std::size_t>(k)];
     double sd = 0;
@@ -332,15 +350,18 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
   // Envelope, attenuation, noise, log compression.
   std::vector<double> attenuation(static_cast<std::size_t>(n[0]));
   for (int i0 = 0; i0 < n[0]; ++i0)
-    attenuation[static_cast<std::size_t>(i0)] = std::pow(10.0, -o.attenuation_db_per_mm * (r0 + i0 * dr - D) / 20.0);
+    attenuation[static_cast<std::size_t>(i0)] =
+        std::pow(10.0, -o.attenuation_db_per_mm * (r0 + i0 * dr - D) / 20.0);
   std::vector<float> grey(total);
   for (int i2 = 0; i2 < n[2]; ++i2) {
     for (int i1 = 0; i1 < n[1]; ++i1) {
-      const std::size_t ray_index = static_cast<std::size_t>(i1) + static_cast<std::size_t>(n[1]) * i2;
+      const std::size_t ray_index =
+          static_cast<std::size_t>(i1) + static_cast<std::size_t>(n[1]) * i2;
       const std::size_t base = static_cast<std::size_t>(n[0]) * ray_index;
       for (int i0 = 0; i0 < n[0]; ++i0) {
         const double att = attenuation[static_cast<std::size_t>(i0)];
-        std::complex<double> field = (coherent[base + i0] + speck[base + i0] * norm) * att * gain[ray_index];
+        std::complex<double> field =
+            (coherent[base + i0] + speck[base + i0] * norm) * att * gain[ray_index];
         field += o.noise * std::complex<double>(rng.normal(), rng.normal()) * std::sqrt(0.5);
         const double db = 10.0 * std::log10(std::max(std::norm(field), 1e-24));
         grey[base + i0] = static_cast<float>(
@@ -359,10 +380,12 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
         const Eigen::Vector3d v = g.axes.transpose() * (out.position(i, j, k) - g.apex);
         if (v.z() <= 1e-6) continue;
         const double r = v.norm();
-        const double a1 = (std::atan(v.x() / v.z()) - th0) / dth, a2 = (std::atan(v.y() / v.z()) - th0) / dth;
+        const double a1 = (std::atan(v.x() / v.z()) - th0) / dth,
+                     a2 = (std::atan(v.y() / v.z()) - th0) / dth;
         const double a0 = (r - r0) / dr;
         if (a0 < 0 || a1 < 0 || a2 < 0 || a0 > n[0] - 1 || a1 > n[1] - 1 || a2 > n[2] - 1) continue;
-        const int b0 = std::min(static_cast<int>(a0), n[0] - 2), b1 = std::min(static_cast<int>(a1), n[1] - 2),
+        const int b0 = std::min(static_cast<int>(a0), n[0] - 2),
+                  b1 = std::min(static_cast<int>(a1), n[1] - 2),
                   b2 = std::min(static_cast<int>(a2), n[2] - 2);
         const double f0 = a0 - b0, f1 = a1 - b1, f2 = a2 - b2;
         double s = 0;
@@ -370,10 +393,12 @@ ImageVolume render_tee_frame(const ValveSequence& seq, int frame, const TeeGeome
           const int c0 = c & 1, c1 = (c >> 1) & 1, c2 = (c >> 2) & 1;
           const double w = (c0 ? f0 : 1 - f0) * (c1 ? f1 : 1 - f1) * (c2 ? f2 : 1 - f2);
           s += w * static_cast<double>(grey[static_cast<std::size_t>(b0 + c0) +
-                        static_cast<std::size_t>(n[0]) *
-                            (static_cast<std::size_t>(b1 + c1) + static_cast<std::size_t>(n[1]) * (b2 + c2))]);
+                                            static_cast<std::size_t>(n[0]) *
+                                                (static_cast<std::size_t>(b1 + c1) +
+                                                 static_cast<std::size_t>(n[1]) * (b2 + c2))]);
         }
-        out.data[static_cast<std::size_t>(i) + static_cast<std::size_t>(N0) * (j + static_cast<std::size_t>(N1) * k)] =
+        out.data[static_cast<std::size_t>(i) +
+                 static_cast<std::size_t>(N0) * (j + static_cast<std::size_t>(N1) * k)] =
             static_cast<float>(s);
       }
     }

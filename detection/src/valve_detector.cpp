@@ -19,14 +19,17 @@ namespace mvtwin::detection {
 namespace {
 
 constexpr double kPositionSigmaMm = 3.0, kLandmarkSigmaMm = 2.0, kBoundarySigmaMm = 1.0;
-constexpr int kContext = 3;  // offset from the detected centre, image axes, mm
+constexpr int kContext = 3;               // offset from the detected centre, image axes, mm
 constexpr int kHypotheses = 3;            // position hypotheses in a fresh volume
 constexpr double kCentreMarginMm = 10.0;  // around the training valves' centres
 
 /// World <-> voxel index of one volume.
 struct Voxels {
   explicit Voxels(const ImageVolume& im)
-      : origin(im.origin), M(im.direction * im.spacing.asDiagonal()), Minv(M.inverse()), size(im.size),
+      : origin(im.origin),
+        M(im.direction * im.spacing.asDiagonal()),
+        Minv(M.inverse()),
+        size(im.size),
         voxel_mm(im.spacing.mean()) {}
   Eigen::Vector3d index(const Eigen::Vector3d& x) const { return Minv * (x - origin); }
   Eigen::Vector3d world(const Eigen::Vector3d& i) const { return origin + M * i; }
@@ -40,7 +43,8 @@ struct Voxels {
     return world(Eigen::Vector3d(0.5 * (size[0] - 1), 0.5 * (size[1] - 1), 0.5 * (size[2] - 1)));
   }
   bool inside(const Eigen::Vector3i& p) const {
-    return p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < size[0] && p[1] < size[1] && p[2] < size[2];
+    return p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] < size[0] && p[1] < size[1] &&
+           p[2] < size[2];
   }
   Eigen::Vector3d origin;
   Eigen::Matrix3d M, Minv;
@@ -61,8 +65,9 @@ cv::Ptr<cv::ml::RTrees> make_forest(const DetectorOptions& o) {
 }
 
 /// Features of voxel p, with the context (p's offset from `centre` in image axes) when given.
-void features(const IntegralVolume& iv, const ImageVolume& im, const Voxels& vx, const Eigen::Vector3i& p,
-              const std::vector<int>& scales, const Eigen::Vector3d* centre, float* out) {
+void features(const IntegralVolume& iv, const ImageVolume& im, const Voxels& vx,
+              const Eigen::Vector3i& p, const std::vector<int>& scales,
+              const Eigen::Vector3d* centre, float* out) {
   voxel_features(iv, im, p, scales, out);
   if (centre) {
     const Eigen::Vector3d off = im.direction.transpose() * (vx.world(p.cast<double>()) - *centre);
@@ -87,11 +92,12 @@ struct Peak {
 };
 
 /// Up to `count` peaks, best first, each at least `separation` mm from the better ones.
-std::vector<Peak> peaks(const std::vector<Eigen::Vector3d>& xs, const std::vector<float>& score, int count,
-                        double radius, double separation, int top = 6) {
+std::vector<Peak> peaks(const std::vector<Eigen::Vector3d>& xs, const std::vector<float>& score,
+                        int count, double radius, double separation, int top = 6) {
   std::vector<std::size_t> order(xs.size());
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return score[a] > score[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return score[a] > score[b]; });
   std::vector<Peak> out;
   for (std::size_t i : order) {
     if (static_cast<int>(out.size()) >= count) break;
@@ -127,7 +133,8 @@ Points3 grid_normals(const Points3& P, int ures, int vres) {
       const Eigen::Vector3d du = at(u + 1, v) - at(u - 1, v), dv = at(u, v + 1) - at(u, v - 1);
       Eigen::Vector3d n = du.cross(dv);
       const double len = n.norm();
-      N.row(static_cast<Eigen::Index>(v) * ures + u) = (len > 1e-12 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::UnitZ()).transpose();
+      N.row(static_cast<Eigen::Index>(v) * ures + u) =
+          (len > 1e-12 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::UnitZ()).transpose();
     }
   return N;
 }
@@ -138,7 +145,8 @@ ValveFrame with_surface_tips(const ValveFrame& frame) {
   ValveFrame out = frame;
   if (!frame.la_surface) return out;
   const std::array<std::pair<Landmark, double>, 2> tips = {
-      std::pair{Landmark::kAnteriorLeafletTip, 0.25}, std::pair{Landmark::kPosteriorLeafletTip, 0.75}};
+      std::pair{Landmark::kAnteriorLeafletTip, 0.25},
+      std::pair{Landmark::kPosteriorLeafletTip, 0.75}};
   for (const auto& [l, s] : tips) {
     const auto i = static_cast<std::size_t>(index(l));
     if (out.landmark_observed[i]) continue;
@@ -155,7 +163,8 @@ std::string DetectorOptions::invalid() const {
   if (trees < 1 || trees > 1000) return "trees must be 1..1000";
   if (max_depth < 2 || max_depth > 30) return "max_depth must be 2..30";
   if (samples_per_volume < 50) return "samples_per_volume must be at least 50";
-  if (!(position_step_mm > 0 && landmark_search_mm > 0 && track_search_mm > 0 && normal_search_mm > 0))
+  if (!(position_step_mm > 0 && landmark_search_mm > 0 && track_search_mm > 0 &&
+        normal_search_mm > 0))
     return "search sizes must be positive";
   if (surface_iterations < 0 || surface_iterations > 20) return "surface_iterations must be 0..20";
   return "";
@@ -181,7 +190,8 @@ ValveDetector& ValveDetector::operator=(ValveDetector&&) noexcept = default;
 const ShapeModel& ValveDetector::shape() const { return impl_->shape; }
 const DetectorOptions& ValveDetector::options() const { return impl_->options; }
 
-ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, const DetectorOptions& o,
+ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data,
+                                   const DetectorOptions& o,
                                    const std::function<void(const std::string&)>& progress) {
   if (const std::string e = o.invalid(); !e.empty()) throw Error("detector: " + e);
   // Closing and closed frames leave the leaflet tips unobserved (they meet at the coaptation);
@@ -191,12 +201,17 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
   completed.reserve(data.size());
   std::vector<TrainingVolume> usable;
   for (const TrainingVolume& t : data) {
-    if (!t.image || !t.truth || !t.truth->la_surface || t.image->data.size() != t.image->num_voxels()) continue;
+    if (!t.image || !t.truth || !t.truth->la_surface ||
+        t.image->data.size() != t.image->num_voxels())
+      continue;
     completed.push_back(with_surface_tips(*t.truth));
     bool all = true;
-    for (int l = 0; l < kNumLandmarks; ++l) all = all && completed.back().landmark_observed[static_cast<std::size_t>(l)];
-    if (all) usable.push_back({t.image, &completed.back()});
-    else completed.pop_back();
+    for (int l = 0; l < kNumLandmarks; ++l)
+      all = all && completed.back().landmark_observed[static_cast<std::size_t>(l)];
+    if (all)
+      usable.push_back({t.image, &completed.back()});
+    else
+      completed.pop_back();
   }
   if (usable.size() < 3)
     throw Error("detector: needs at least 3 training volumes with landmarks and a surface, got " +
@@ -214,7 +229,9 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
 
   const int nf = m.nf(), nc = nf + kContext;
   Rng rng(o.seed);
-  auto gauss = [](double x, double s) { return static_cast<float>(std::exp(-0.5 * x * x / (s * s))); };
+  auto gauss = [](double x, double s) {
+    return static_cast<float>(std::exp(-0.5 * x * x / (s * s)));
+  };
   cv::Mat pos_x(0, nf, CV_32F), pos_y(0, 1, CV_32F), bnd_x(0, nc, CV_32F), bnd_y(0, 1, CV_32F);
   std::vector<cv::Mat> lm_x, lm_y;  // one (not shared) matrix per landmark
   for (int l = 0; l < kNumLandmarks; ++l) {
@@ -234,7 +251,8 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
     const Voxels vx(im);
     const Eigen::Vector3d c = f.annulus.colwise().mean().transpose();
     for (int l = 0; l < kNumLandmarks; ++l)
-      m.landmark_offset[static_cast<std::size_t>(l)] += im.direction.transpose() * (f.landmarks[static_cast<std::size_t>(l)] - c);
+      m.landmark_offset[static_cast<std::size_t>(l)] +=
+          im.direction.transpose() * (f.landmarks[static_cast<std::size_t>(l)] - c);
     {
       const Eigen::Vector3d mid = vx.centre();
       const Eigen::Vector3d off = im.direction.transpose() * (c - mid);
@@ -249,9 +267,13 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
     for (int s = 0; s < o.samples_per_volume; ++s) {
       const double u = rng.uniform();
       Eigen::Vector3i p;
-      if (u < 0.3) p = vx.nearest(c + random_offset(4.0));
-      else if (u < 0.6) p = vx.nearest(c + random_offset(15.0));
-      else p = Eigen::Vector3i(rng.uniform_int(0, im.size[0] - 1), rng.uniform_int(0, im.size[1] - 1), rng.uniform_int(0, im.size[2] - 1));
+      if (u < 0.3)
+        p = vx.nearest(c + random_offset(4.0));
+      else if (u < 0.6)
+        p = vx.nearest(c + random_offset(15.0));
+      else
+        p = Eigen::Vector3i(rng.uniform_int(0, im.size[0] - 1), rng.uniform_int(0, im.size[1] - 1),
+                            rng.uniform_int(0, im.size[2] - 1));
       if (!vx.inside(p)) continue;
       features(iv, im, vx, p, o.scales, nullptr, row.data());
       push(pos_x, pos_y, gauss((vx.world(p.cast<double>()) - c).norm(), kPositionSigmaMm), nf);
@@ -261,7 +283,8 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
       const Eigen::Vector3d L = f.landmarks[static_cast<std::size_t>(l)];
       for (int s = 0; s < o.samples_per_volume / 3; ++s) {
         const Eigen::Vector3d cn = c + random_offset(2.5);
-        const Eigen::Vector3i p = vx.nearest(L + random_offset(rng.uniform() < 0.4 ? 3.0 : o.landmark_search_mm));
+        const Eigen::Vector3i p =
+            vx.nearest(L + random_offset(rng.uniform() < 0.4 ? 3.0 : o.landmark_search_mm));
         if (!vx.inside(p)) continue;
         features(iv, im, vx, p, o.scales, &cn, row.data());
         push(lm_x[static_cast<std::size_t>(l)], lm_y[static_cast<std::size_t>(l)],
@@ -273,7 +296,9 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
     const Points3 N = grid_normals(P, f.la_surface->ures(), f.la_surface->vres());
     for (int s = 0; s < o.samples_per_volume; ++s) {
       const auto k = static_cast<Eigen::Index>(rng.uniform_int(0, static_cast<int>(P.rows()) - 1));
-      const double off = rng.uniform() < 0.4 ? rng.uniform(-1.5, 1.5) : rng.uniform(-o.normal_search_mm - 2, o.normal_search_mm + 2);
+      const double off = rng.uniform() < 0.4
+                             ? rng.uniform(-1.5, 1.5)
+                             : rng.uniform(-o.normal_search_mm - 2, o.normal_search_mm + 2);
       const Eigen::Vector3d x = P.row(k).transpose() + off * N.row(k).transpose();
       const Eigen::Vector3i p = vx.nearest(x);
       if (!vx.inside(p)) continue;
@@ -290,8 +315,8 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
   for (int l = 0; l < kNumLandmarks; ++l) {
     say("landmark detector " + std::string(kLandmarkNames[static_cast<std::size_t>(l)]));
     m.landmarks[static_cast<std::size_t>(l)] = make_forest(o);
-    m.landmarks[static_cast<std::size_t>(l)]->train(
-        cv::ml::TrainData::create(lm_x[static_cast<std::size_t>(l)], cv::ml::ROW_SAMPLE, lm_y[static_cast<std::size_t>(l)]));
+    m.landmarks[static_cast<std::size_t>(l)]->train(cv::ml::TrainData::create(
+        lm_x[static_cast<std::size_t>(l)], cv::ml::ROW_SAMPLE, lm_y[static_cast<std::size_t>(l)]));
   }
   say("boundary detector (" + std::to_string(bnd_x.rows) + " samples)");
   m.boundary = make_forest(o);
@@ -299,7 +324,8 @@ ValveDetector ValveDetector::train(const std::vector<TrainingVolume>& data, cons
   return d;
 }
 
-ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previous, DetectionInfo* info) const {
+ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previous,
+                                 DetectionInfo* info) const {
   const auto t0 = std::chrono::steady_clock::now();
   const Impl& m = *impl_;
   if (!m.position) throw Error("detector: not trained");
@@ -310,7 +336,8 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   const int nf = m.nf(), nc = nf + kContext;
   const DetectorOptions& o = m.options;
 
-  auto score = [&](const cv::Ptr<cv::ml::RTrees>& f, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d* centre) {
+  auto score = [&](const cv::Ptr<cv::ml::RTrees>& f, const std::vector<Eigen::Vector3d>& pts,
+                   const Eigen::Vector3d* centre) {
     const int cols = centre ? nc : nf;
     cv::Mat X(static_cast<int>(pts.size()), cols, CV_32F, cv::Scalar(0));
     for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -325,7 +352,8 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
     std::vector<Eigen::Vector3d> out;
     for (double a = -r; a <= r + 1e-9; a += st)
       for (double b = -r; b <= r + 1e-9; b += st)
-        for (double c = -r; c <= r + 1e-9; c += st) out.push_back(x + im.direction * Eigen::Vector3d(a, b, c));
+        for (double c = -r; c <= r + 1e-9; c += st)
+          out.push_back(x + im.direction * Eigen::Vector3d(a, b, c));
     return out;
   };
   const double h = std::max(1.0, vx.voxel_mm);  // finest search step, mm
@@ -334,7 +362,8 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   // near the previous frame's when tracking.
   std::vector<Eigen::Vector3d> hypotheses;
   if (previous) {
-    const std::vector<Eigen::Vector3d> xs = cube(previous->annulus.colwise().mean().transpose(), o.track_search_mm, 2 * h);
+    const std::vector<Eigen::Vector3d> xs =
+        cube(previous->annulus.colwise().mean().transpose(), o.track_search_mm, 2 * h);
     hypotheses.push_back(peaks(xs, score(m.position, xs, nullptr), 1, 3 * h, 0.0).front().x);
   } else {
     const int step = std::max(1, static_cast<int>(std::lround(o.position_step_mm / vx.voxel_mm)));
@@ -347,13 +376,15 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
           const Eigen::Vector3d x = vx.world(Eigen::Vector3d(i, j, k));
           if (m.has_centre_range) {  // where training valves were, with a margin
             const Eigen::Vector3d off = im.direction.transpose() * (x - mid);
-            if (((off - m.centre_lo).array() < -kCentreMarginMm).any() || ((off - m.centre_hi).array() > kCentreMarginMm).any())
+            if (((off - m.centre_lo).array() < -kCentreMarginMm).any() ||
+                ((off - m.centre_hi).array() > kCentreMarginMm).any())
               continue;
           }
           xs.push_back(x);
         }
     if (xs.empty()) throw Error("detector: the volume is too small to search");
-    for (const Peak& pk : peaks(xs, score(m.position, xs, nullptr), kHypotheses, 2.0 * step * vx.voxel_mm, 10.0))
+    for (const Peak& pk :
+         peaks(xs, score(m.position, xs, nullptr), kHypotheses, 2.0 * step * vx.voxel_mm, 10.0))
       hypotheses.push_back(pk.x);
   }
 
@@ -367,8 +398,11 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
     Found f;
     for (int l = 0; l < kNumLandmarks; ++l) {
       const auto li = static_cast<std::size_t>(l);
-      const Eigen::Vector3d guess = from_previous ? previous->landmarks[li] : Eigen::Vector3d(centre + im.direction * m.landmark_offset[li]);
-      std::vector<Eigen::Vector3d> cand = cube(guess, previous ? o.track_search_mm : o.landmark_search_mm, 2 * h);
+      const Eigen::Vector3d guess =
+          from_previous ? previous->landmarks[li]
+                        : Eigen::Vector3d(centre + im.direction * m.landmark_offset[li]);
+      std::vector<Eigen::Vector3d> cand =
+          cube(guess, previous ? o.track_search_mm : o.landmark_search_mm, 2 * h);
       Peak best = peaks(cand, score(m.landmarks[li], cand, &centre), 1, 3 * h, 0.0).front();
       if (refine) {
         cand = cube(best.x, 2 * h, h);
@@ -420,9 +454,10 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
   const int ures = m.shape.ures(), vres = m.shape.vres();
   Points3 P = m.shape.place_mean(L);
   if (previous && previous->la_surface) {
-    const LeafletGrid g = previous->la_surface->ures() == ures && previous->la_surface->vres() == vres
-                              ? *previous->la_surface
-                              : previous->la_surface->resampled(ures, vres);
+    const LeafletGrid g =
+        previous->la_surface->ures() == ures && previous->la_surface->vres() == vres
+            ? *previous->la_surface
+            : previous->la_surface->resampled(ures, vres);
     P = m.shape.constrain(g.points(), place);
   }
   for (int it = 0; it < o.surface_iterations; ++it) {
@@ -452,11 +487,13 @@ ValveFrame ValveDetector::detect(const ImageVolume& im, const ValveFrame* previo
       double d = 0;
       if (best > 0 && best < ns - 1) {
         const double sm = static_cast<double>(sc[static_cast<std::size_t>(k * ns + best - 1)]),
-                     s0 = static_cast<double>(bs), sp = static_cast<double>(sc[static_cast<std::size_t>(k * ns + best + 1)]);
+                     s0 = static_cast<double>(bs),
+                     sp = static_cast<double>(sc[static_cast<std::size_t>(k * ns + best + 1)]);
         const double den = sm - 2 * s0 + sp;
         if (den < -1e-9) d = std::clamp(0.5 * (sm - sp) / den, -0.5, 0.5);
       }
-      moved.row(k) = (cand[static_cast<std::size_t>(k * ns + best)] + d * st * N.row(k).transpose()).transpose();
+      moved.row(k) = (cand[static_cast<std::size_t>(k * ns + best)] + d * st * N.row(k).transpose())
+                         .transpose();
     }
     P = m.shape.constrain(moved, place);
   }
@@ -484,7 +521,8 @@ std::vector<ValveFrame> ValveDetector::detect_sequence(const std::vector<ImageVo
     for (std::size_t f = 1; f + 1 < raw.size(); ++f) {
       for (int l = 0; l < kNumLandmarks; ++l) {
         const auto i = static_cast<std::size_t>(l);
-        out[f].landmarks[i] = 0.25 * raw[f - 1].landmarks[i] + 0.5 * raw[f].landmarks[i] + 0.25 * raw[f + 1].landmarks[i];
+        out[f].landmarks[i] = 0.25 * raw[f - 1].landmarks[i] + 0.5 * raw[f].landmarks[i] +
+                              0.25 * raw[f + 1].landmarks[i];
       }
       Points3 P = 0.25 * raw[f - 1].la_surface->points() + 0.5 * raw[f].la_surface->points() +
                   0.25 * raw[f + 1].la_surface->points();
@@ -508,27 +546,35 @@ void ValveDetector::save(const std::filesystem::path& path,
     {
       cv::FileStorage fs(name, cv::FileStorage::WRITE);
       if (!fs.isOpened()) throw Error(path.string() + ": cannot be written");
-      fs << "format" << "mvtwin-valve-detector" << "format_version" << 1;
-      fs << "provenance" << "{";
+      fs << "format"
+         << "mvtwin-valve-detector"
+         << "format_version" << 1;
+      fs << "provenance"
+         << "{";
       for (const auto& [k, v] : provenance) fs << k << v;
       fs << "}";
       fs << "scales" << m.options.scales;
-      fs << "options" << "{" << "trees" << m.options.trees << "max_depth" << m.options.max_depth
-         << "samples_per_volume" << m.options.samples_per_volume << "position_step_mm" << m.options.position_step_mm
-         << "landmark_search_mm" << m.options.landmark_search_mm << "track_search_mm" << m.options.track_search_mm
-         << "normal_search_mm" << m.options.normal_search_mm << "surface_iterations" << m.options.surface_iterations
-         << "seed" << static_cast<double>(m.options.seed) << "}";
+      fs << "options"
+         << "{"
+         << "trees" << m.options.trees << "max_depth" << m.options.max_depth << "samples_per_volume"
+         << m.options.samples_per_volume << "position_step_mm" << m.options.position_step_mm
+         << "landmark_search_mm" << m.options.landmark_search_mm << "track_search_mm"
+         << m.options.track_search_mm << "normal_search_mm" << m.options.normal_search_mm
+         << "surface_iterations" << m.options.surface_iterations << "seed"
+         << static_cast<double>(m.options.seed) << "}";
       fs << "shape_model" << m.shape.serialize();
       std::vector<double> offs;
       for (const auto& v : m.landmark_offset) offs.insert(offs.end(), v.data(), v.data() + 3);
       fs << "landmark_offset" << offs;
       if (m.has_centre_range)
         fs << "centre_range" << std::vector<double>{m.centre_lo[0], m.centre_lo[1], m.centre_lo[2],
-                                                   m.centre_hi[0], m.centre_hi[1], m.centre_hi[2]};
-      fs << "position" << "{";
+                                                    m.centre_hi[0], m.centre_hi[1], m.centre_hi[2]};
+      fs << "position"
+         << "{";
       m.position->write(fs);
       fs << "}";
-      fs << "boundary" << "{";
+      fs << "boundary"
+         << "{";
       m.boundary->write(fs);
       fs << "}";
       for (int l = 0; l < kNumLandmarks; ++l) {
@@ -553,7 +599,8 @@ cv::FileStorage open_model(const std::filesystem::path& path) {
   try {
     fs.open(what, cv::FileStorage::READ);
   } catch (const cv::Exception& e) {
-    throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) + ")");
+    throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) +
+                ")");
   }
   if (!fs.isOpened()) throw Error(what + ": not a readable detector model");
   if (fs["format"].empty() || static_cast<std::string>(fs["format"]) != "mvtwin-valve-detector")
@@ -567,8 +614,8 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   const std::string what = path.string();
   cv::FileStorage fs = open_model(path);
   if (static_cast<int>(fs["format_version"]) != 1)
-    throw Error(what + ": detector model format version " + std::to_string(static_cast<int>(fs["format_version"])) +
-                " is not supported (1)");
+    throw Error(what + ": detector model format version " +
+                std::to_string(static_cast<int>(fs["format_version"])) + " is not supported (1)");
   ValveDetector d;
   Impl& m = *d.impl_;
   fs["scales"] >> m.options.scales;
@@ -582,7 +629,8 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   m.options.normal_search_mm = static_cast<double>(on["normal_search_mm"]);
   m.options.surface_iterations = static_cast<int>(on["surface_iterations"]);
   m.options.seed = static_cast<std::uint64_t>(static_cast<double>(on["seed"]));
-  if (const std::string e = m.options.invalid(); !e.empty()) throw Error(what + ": bad detector options: " + e);
+  if (const std::string e = m.options.invalid(); !e.empty())
+    throw Error(what + ": bad detector options: " + e);
   std::vector<double> shape, offs;
   fs["shape_model"] >> shape;
   m.shape = ShapeModel::deserialize(shape);
@@ -608,11 +656,13 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   m.position = forest("position");
   m.boundary = forest("boundary");
   for (int l = 0; l < kNumLandmarks; ++l)
-    m.landmarks.push_back(forest("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])));
+    m.landmarks.push_back(
+        forest("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])));
   return d;
 }
 
-std::vector<std::pair<std::string, std::string>> ValveDetector::provenance(const std::filesystem::path& path) {
+std::vector<std::pair<std::string, std::string>> ValveDetector::provenance(
+    const std::filesystem::path& path) {
   const cv::FileStorage fs = open_model(path);
   std::vector<std::pair<std::string, std::string>> out;
   for (const cv::FileNode& n : fs["provenance"])

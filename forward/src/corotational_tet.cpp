@@ -242,7 +242,8 @@ void CorotationalTet<N>::gradient(const Eigen::Matrix3d& R, const Nodes& x, Vect
   }
   if (p) {
     Vector q, kq = Vector::Zero();
-    for (int i = 0; i < N; ++i) q.template segment<3>(3 * i) = R.transpose() * p->template segment<3>(3 * i);
+    for (int i = 0; i < N; ++i)
+      q.template segment<3>(3 * i) = R.transpose() * p->template segment<3>(3 * i);
     for (int j = 0; j < kDofs; ++j) {
       k += K0_.col(j) * u[j];
       kq += K0_.col(j) * q[j];
@@ -259,7 +260,8 @@ template <int N>
 typename CorotationalTet<N>::Vector CorotationalTet<N>::tangent_times(const Eigen::Matrix3d& R,
                                                                       const Vector& p) const {
   Vector q, k = Vector::Zero();
-  for (int i = 0; i < N; ++i) q.template segment<3>(3 * i) = R.transpose() * p.template segment<3>(3 * i);
+  for (int i = 0; i < N; ++i)
+    q.template segment<3>(3 * i) = R.transpose() * p.template segment<3>(3 * i);
   for (int j = 0; j < kDofs; ++j) k += K0_.col(j) * q[j];
   Vector y;
   for (int i = 0; i < N; ++i) y.template segment<3>(3 * i) = R * k.template segment<3>(3 * i);

@@ -106,8 +106,8 @@ int ElasticBody::accumulate(const Eigen::VectorXd& x, Eigen::VectorXd* g,
 
 template <int N>
 int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
-                                const Eigen::VectorXd& x, Eigen::VectorXd* g,
-                                ElementRotations* rot, double* energy, const Eigen::VectorXd* p,
+                                const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
+                                double* energy, const Eigen::VectorXd* p,
                                 Eigen::VectorXd* Kp) const {
   using Tet = CorotationalTet<N>;
   typename Tet::Nodes xe;
@@ -147,7 +147,8 @@ int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
       }
     }
     if (p) {
-      for (int a = 0; a < N; ++a) Kp->segment<3>(3 * mesh_.T(e, a)) += kpe.template segment<3>(3 * a);
+      for (int a = 0; a < N; ++a)
+        Kp->segment<3>(3 * mesh_.T(e, a)) += kpe.template segment<3>(3 * a);
     }
     if (energy) *energy += en;
     for (int a = 0; a < N; ++a) g->segment<3>(3 * mesh_.T(e, a)) += ge.template segment<3>(3 * a);

@@ -35,8 +35,8 @@ Interpenetration find_interpenetration(const ValveModel& m, const Eigen::VectorX
   for (int e = 0; e < mesh.num_elements(); ++e) {
     if (quadratic) {
       for (const auto& s : kSub)
-        subs.push_back({{mesh.T(e, s[0]), mesh.T(e, s[1]), mesh.T(e, s[2]), mesh.T(e, s[3])},
-                        mesh.tag[e]});
+        subs.push_back(
+            {{mesh.T(e, s[0]), mesh.T(e, s[1]), mesh.T(e, s[2]), mesh.T(e, s[3])}, mesh.tag[e]});
     } else {
       subs.push_back({{mesh.T(e, 0), mesh.T(e, 1), mesh.T(e, 2), mesh.T(e, 3)}, mesh.tag[e]});
     }

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <sstream>
 #include <set>
+#include <sstream>
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
@@ -60,7 +60,8 @@ std::vector<std::filesystem::path> export_scene(const ClosureScene& scene,
   for (size_t k = 0; k < scene.chordae.size(); ++k) {
     const SceneChorda& c = scene.chordae[k];
     Eigen::Vector3d ins = Eigen::Vector3d::Zero();
-    for (int nd : c.nodes) ins += m.mesh.V.row(nd).transpose() / static_cast<double>(c.nodes.size());
+    for (int nd : c.nodes)
+      ins += m.mesh.V.row(nd).transpose() / static_cast<double>(c.nodes.size());
     const Eigen::Vector3d t = scene.papillary_tip(c.tip, 0.0);
     ch.points.row(2 * static_cast<Eigen::Index>(k)) = ins.transpose();
     ch.points.row(2 * static_cast<Eigen::Index>(k) + 1) = t.transpose();

@@ -106,8 +106,7 @@ void SymmetricBlockMatrix::set_zero() {
   std::fill(lower_.valuePtr(), lower_.valuePtr() + lower_.nonZeros(), 0.0);
 }
 
-void SymmetricBlockMatrix::add_clique(int c, const Eigen::Ref<const Eigen::MatrixXd>& K,
-                                      double s) {
+void SymmetricBlockMatrix::add_clique(int c, const Eigen::Ref<const Eigen::MatrixXd>& K, double s) {
   const int m = clique_start_[c + 1] - clique_start_[c];
   double* values = lower_.valuePtr();
   for (int j = 0; j < m; ++j) {
@@ -116,7 +115,8 @@ void SymmetricBlockMatrix::add_clique(int c, const Eigen::Ref<const Eigen::Matri
         const int k = slot(c, i, j, col);
         if (k < 0) continue;
         // Same node: rows col..2 of the block; otherwise all three.
-        const bool same = clique_nodes_[clique_start_[c] + i] == clique_nodes_[clique_start_[c] + j];
+        const bool same =
+            clique_nodes_[clique_start_[c] + i] == clique_nodes_[clique_start_[c] + j];
         for (int r = same ? col : 0, q = 0; r < 3; ++r, ++q)
           values[k + q] += s * K(3 * i + r, 3 * j + col);
       }

@@ -1,9 +1,9 @@
 #include "mvtwin/forward/valve_model.h"
 
-#include <cmath>
-#include <numbers>
 #include <algorithm>
+#include <cmath>
 #include <limits>
+#include <numbers>
 #include <set>
 
 #include <Eigen/Geometry>
@@ -368,13 +368,14 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   m.annulus_column = sm.annulus_column;
   m.surface_triangles.resize(static_cast<Eigen::Index>(sm.triangles.size()), 3);
   for (size_t f = 0; f < sm.triangles.size(); ++f) {
-    for (int k = 0; k < 3; ++k) m.surface_triangles(static_cast<Eigen::Index>(f), k) = sm.triangles[f][k];
+    for (int k = 0; k < 3; ++k)
+      m.surface_triangles(static_cast<Eigen::Index>(f), k) = sm.triangles[f][k];
   }
 
   // Atrial surface points and vertex normals towards the ventricle: counter-clockwise in
   // (xi, depth) is the grid's (u, v) winding, whose normals face the ventricle.
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X(N, 3), normal =
-      Eigen::MatrixXd::Zero(N, 3);
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> X(N, 3),
+      normal = Eigen::MatrixXd::Zero(N, 3);
   for (int i = 0; i < N; ++i) X.row(i) = un.position(sm.st[i]).transpose();
   for (const auto& t : sm.triangles) {
     const Eigen::Vector3d a = X.row(t[0]), b = X.row(t[1]), c = X.row(t[2]);
@@ -417,8 +418,8 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
     }
     const double s_c = un.st(c2.x(), c2.y())[0];
     const double dx = 0.25 * un.perimeter() / U, dd = 0.25;
-    Eigen::Vector3d tu = un.position(un.st(c2.x() + dx, c2.y())) -
-                         un.position(un.st(c2.x() - dx, c2.y()));
+    Eigen::Vector3d tu =
+        un.position(un.st(c2.x() + dx, c2.y())) - un.position(un.st(c2.x() - dx, c2.y()));
     Eigen::Vector3d tv = un.position(un.st(c2.x(), c2.y() + dd)) -
                          un.position(un.st(c2.x(), std::max(0.0, c2.y() - dd)));
     tu.normalize();
@@ -438,8 +439,7 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
                               p3 = lin.V.row(t[3]);
         if ((p1 - p0).cross(p2 - p0).dot(p3 - p0) < 0) std::swap(t[1], t[2]);
         tets.push_back(t);
-        tags.push_back(
-            static_cast<int>(anterior ? LeafletTag::kAnterior : LeafletTag::kPosterior));
+        tags.push_back(static_cast<int>(anterior ? LeafletTag::kAnterior : LeafletTag::kPosterior));
         fibres.push_back(fibre);
       }
     }
@@ -479,7 +479,8 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
       return q;
     };
     for (const auto& [edge, mid] : m.mesh.mid_edge) {
-      const int ia = edge.first % N, la = edge.first / N, ib = edge.second % N, lb = edge.second / N;
+      const int ia = edge.first % N, la = edge.first / N, ib = edge.second % N,
+                lb = edge.second / N;
       const Eigen::Vector2d qa = sm.plane[ia], qb = unwrap(sm.plane[ib], qa);
       const Eigen::Vector2d q = 0.5 * (qa + qb);
       const Eigen::Vector3d surface = un.position(un.st(q.x(), q.y()));
@@ -495,7 +496,8 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
           Xc.row(a) = m.mesh.V.row(m.mesh.T(e, a));
           Xs.row(a) = straight.row(m.mesh.T(e, a));
         }
-        if (CorotationalTet<10>::min_jacobian_of(Xc) < 0.2 * CorotationalTet<10>::min_jacobian_of(Xs)) {
+        if (CorotationalTet<10>::min_jacobian_of(Xc) <
+            0.2 * CorotationalTet<10>::min_jacobian_of(Xs)) {
           for (int a = 4; a < 10; ++a) m.mesh.V.row(m.mesh.T(e, a)) = straight.row(m.mesh.T(e, a));
           ++m.straight_elements;
         }
@@ -627,8 +629,8 @@ LeafletGrid sample_atrial(const AtrialSampler& sp, const Eigen::VectorXd& x) {
   for (size_t k = 0; k < sp.nodes.size(); ++k) {
     const Eigen::Vector3d& L = sp.weights[k];
     Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    const bool quadratic = k < sp.mids.size() && sp.mids[k][0] >= 0 && sp.mids[k][1] >= 0 &&
-                           sp.mids[k][2] >= 0;
+    const bool quadratic =
+        k < sp.mids.size() && sp.mids[k][0] >= 0 && sp.mids[k][1] >= 0 && sp.mids[k][2] >= 0;
     if (quadratic) {
       // 6-node triangle: corners L_i (2 L_i - 1), mid-edge ij 4 L_i L_j.
       for (int j = 0; j < 3; ++j) {

@@ -61,8 +61,8 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   if (r.samples.empty()) return q;
   const forward::ClosureSample& s = r.samples.back();
   if (!s.la_surface.points().allFinite()) return q;
-  const ClosureMeasures m =
-      measure_closure(s.la_surface.points().topRows(s.la_surface.ures()), s.la_surface.triangulate(), 0.25);
+  const ClosureMeasures m = measure_closure(s.la_surface.points().topRows(s.la_surface.ures()),
+                                            s.la_surface.triangulate(), 0.25);
   q.orifice_area_mm2 = m.orifice_area_mm2;
   q.annulus_area_mm2 = m.annulus_area_mm2;
   q.orifice_components = m.orifice_components;
@@ -110,7 +110,8 @@ std::vector<std::vector<ClipSite>> clip_candidates(bool pairs) {
   if (pairs) {
     for (size_t i = 0; i < pos.size(); ++i)
       for (size_t j = i + 1; j < pos.size(); ++j)
-        if (pos[j] - pos[i] >= 0.2 - 1e-9) out.push_back({ClipSite{pos[i], 1.0}, ClipSite{pos[j], 1.0}});
+        if (pos[j] - pos[i] >= 0.2 - 1e-9)
+          out.push_back({ClipSite{pos[i], 1.0}, ClipSite{pos[j], 1.0}});
   }
   return out;
 }

@@ -52,7 +52,8 @@ ClosureObjective::ClosureObjective(const Patient& patient, ParameterSpace space,
     observed_meshes_.push_back(g.triangulate());
     observed_points_.push_back(leaflet_points(g));
   }
-  simulated_points_per_frame_ = options_.simulation.model.ures * (options_.simulation.model.vres - 1);
+  simulated_points_per_frame_ =
+      options_.simulation.model.ures * (options_.simulation.model.vres - 1);
   num_residuals_ = 0;
   for (const auto& p : observed_points_)
     num_residuals_ += static_cast<int>(p.rows()) + simulated_points_per_frame_;
@@ -95,7 +96,8 @@ Evaluation ClosureObjective::compare(const forward::ClosureResult& r) const {
         }
         const Points sim = leaflet_points(s->la_surface);
         if (!sim.allFinite()) throw Error("non-finite simulated surface");
-        const std::vector<double> a = point_to_mesh_distances(observed_points_[i], s->la_surface.triangulate());
+        const std::vector<double> a =
+            point_to_mesh_distances(observed_points_[i], s->la_surface.triangulate());
         const std::vector<double> b = point_to_mesh_distances(sim, observed_meshes_[i]);
         if (k + static_cast<int>(a.size() + b.size()) > num_residuals_)
           throw Error("objective: the simulation's grid differs from the objective's");
@@ -170,11 +172,12 @@ std::vector<Evaluation> ClosureObjective::evaluate_many(const std::vector<Eigen:
   std::vector<Evaluation> out(xs.size());
   tbb::task_arena arena(std::max(1, jobs));
   arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, xs.size(), 1),
-                      [&](const tbb::blocked_range<size_t>& r) {
-                        for (size_t i = r.begin(); i != r.end(); ++i) out[i] = evaluate(xs[i]);
-                      },
-                      tbb::simple_partitioner());
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, xs.size(), 1),
+        [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t i = r.begin(); i != r.end(); ++i) out[i] = evaluate(xs[i]);
+        },
+        tbb::simple_partitioner());
   });
   return out;
 }

@@ -20,8 +20,8 @@ const std::vector<ParameterSpec>& parameter_catalogue() {
     }
     c.push_back({"marginal_stiffness_scale", "stiffness", "1", 0.2, 5.0, 1.0, 0.2, 1.0});
     c.push_back({"basal_stiffness_scale", "stiffness", "1", 0.2, 5.0, 1.0, 0.2, 1.0});
-    c.push_back({"peak_pressure", "pressure", "mmHg", 60.0, 200.0, 120.0, 10.0,
-                 units::mmhg_to_mpa(1.0)});
+    c.push_back(
+        {"peak_pressure", "pressure", "mmHg", 60.0, 200.0, 120.0, 10.0, units::mmhg_to_mpa(1.0)});
     c.push_back({"al_modulus_scale", "modulus", "1", 0.2, 6.0, 1.0, 0.2, 1.0});
     c.push_back({"pl_modulus_scale", "modulus", "1", 0.2, 6.0, 1.0, 0.2, 1.0});
     return c;

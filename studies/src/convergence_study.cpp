@@ -192,8 +192,7 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
 
   ValveParameters parameters;
   forward::ClosureOptions base = o.model;
-  const Patient patient =
-      detail::study_patient(o.seed, o.patient, o.patient_file, &parameters);
+  const Patient patient = detail::study_patient(o.seed, o.patient, o.patient_file, &parameters);
   base.progress = nullptr;
   base.record_every = 0;  // the end state is all the study compares
 

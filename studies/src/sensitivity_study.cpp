@@ -146,8 +146,7 @@ SensitivityStudyResult run_sensitivity_study(const SensitivityStudyOptions& o, W
 
   ValveParameters baseline;
   forward::ClosureOptions model = o.model;
-  const Patient patient =
-      detail::study_patient(o.seed, o.patient, o.patient_file, &baseline);
+  const Patient patient = detail::study_patient(o.seed, o.patient, o.patient_file, &baseline);
   model.progress = nullptr;
   // Record every sample_s of observed time (the simulated closure is `stretch` times longer).
   model.record_every =

@@ -50,8 +50,9 @@ TriangleMesh square(double z, const std::function<bool(double, double)>& keep) {
 TEST(ClosureMeasures, FullyCoveredOpeningHasNoOrifice) {
   const ClosureMeasures m =
       measure_closure(circle(10, 128), square(-3.0, [](double, double) { return true; }));
-  EXPECT_NEAR(m.annulus_area_mm2, std::numbers::pi * 100 * std::cos(std::numbers::pi / 128) *
-                                      std::sin(std::numbers::pi / 128) * 128 / std::numbers::pi,
+  EXPECT_NEAR(m.annulus_area_mm2,
+              std::numbers::pi * 100 * std::cos(std::numbers::pi / 128) *
+                  std::sin(std::numbers::pi / 128) * 128 / std::numbers::pi,
               2.0);
   EXPECT_EQ(m.orifice_area_mm2, 0.0);
   EXPECT_EQ(m.orifice_components, 0);
@@ -66,9 +67,8 @@ TEST(ClosureMeasures, KnownGapAndTwoOrifices) {
   EXPECT_EQ(gap.orifice_components, 1);
   // A clipped gap: the middle of the strip closed, two openings remain.
   const ClosureMeasures clipped = measure_closure(
-      circle(10, 256), square(-2.0, [](double x, double y) {
-        return std::abs(y) > 1.0 || std::abs(x) < 2.0;
-      }));
+      circle(10, 256),
+      square(-2.0, [](double x, double y) { return std::abs(y) > 1.0 || std::abs(x) < 2.0; }));
   EXPECT_EQ(clipped.orifice_components, 2);
   EXPECT_NEAR(clipped.orifice_area_mm2, strip - 8.0, 0.06 * strip);
   // The double orifice: each opening's area, largest first, summing to the orifice.
@@ -77,10 +77,9 @@ TEST(ClosureMeasures, KnownGapAndTwoOrifices) {
               clipped.orifice_area_mm2, 1e-9);
   EXPECT_NEAR(clipped.component_areas_mm2[1], 0.5 * (strip - 8.0), 0.06 * strip);
   // A clip off the middle (x in (2, 6)) leaves a large and a small opening.
-  const ClosureMeasures off = measure_closure(
-      circle(10, 256), square(-2.0, [](double x, double y) {
-        return std::abs(y) > 1.0 || (x > 2.0 && x < 6.0);
-      }));
+  const ClosureMeasures off = measure_closure(circle(10, 256), square(-2.0, [](double x, double y) {
+                                                return std::abs(y) > 1.0 || (x > 2.0 && x < 6.0);
+                                              }));
   ASSERT_EQ(off.component_areas_mm2.size(), 2u);
   EXPECT_GT(off.component_areas_mm2[0], 2.0 * off.component_areas_mm2[1]);
   const double small = 2.0 * 10.0 * std::sqrt(1.0 - 0.01) - 2.0 * 6.0;  // x in (6, ~9.95), |y| < 1
@@ -118,7 +117,8 @@ LeafletGrid hand_closed_valve(double gap, double depth) {
   const int U = 32, V = 13, K = 6;
   LeafletGrid::Points P(U * V, 3);
   for (int u = 0; u < U; ++u) {
-    const double th = std::numbers::pi * u / (U / 2), x = 15.0 * std::cos(th), y0 = 15.0 * std::sin(th);
+    const double th = std::numbers::pi * u / (U / 2), x = 15.0 * std::cos(th),
+                 y0 = 15.0 * std::sin(th);
     const double side = u < U / 2 ? 1.0 : -1.0;
     for (int v = 0; v < V; ++v) {
       Eigen::Vector3d q;

@@ -97,15 +97,18 @@ TEST_F(ImageIo, LpsFilesAreConvertedToRas) {
     for (int i = 0; i < 8; ++i) s += static_cast<char>(10 * i);
     return s;
   }();
-  write_text(dir_ / "lps.nrrd",
-             "NRRD0004\n# hand-written\ntype: uchar\ndimension: 3\nspace: left-posterior-superior\n"
-             "sizes: 2 2 2\nspace directions: (2,0,0) (0,3,0) (0,0,4)\nkinds: domain domain domain\n"
-             "encoding: raw\nspace origin: (10,20,30)\n\n" + voxels);
+  write_text(
+      dir_ / "lps.nrrd",
+      "NRRD0004\n# hand-written\ntype: uchar\ndimension: 3\nspace: left-posterior-superior\n"
+      "sizes: 2 2 2\nspace directions: (2,0,0) (0,3,0) (0,0,4)\nkinds: domain domain domain\n"
+      "encoding: raw\nspace origin: (10,20,30)\n\n" +
+          voxels);
   write_text(dir_ / "lps.mha",
              "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
              "CompressedData = False\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = 10 20 30\n"
              "ElementSpacing = 2 3 4\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
-             "ElementDataFile = LOCAL\n" + voxels);
+             "ElementDataFile = LOCAL\n" +
+                 voxels);
   for (const char* name : {"lps.nrrd", "lps.mha"}) {
     SCOPED_TRACE(name);
     const ImageVolume im = read_image(dir_ / name);
@@ -168,7 +171,8 @@ TEST_F(ImageIo, BadFilesGetClearErrorsAndWritesLeaveNothingHalfDone) {
   }
   write_text(dir_ / "type.nrrd", "NRRD0004\ntype: block\ndimension: 3\nsizes: 1 1 1\n\n");
   EXPECT_NE(error_of(dir_ / "type.nrrd").find("unsupported NRRD type 'block'"), std::string::npos);
-  write_text(dir_ / "dims.mha", "NDims = 2\nDimSize = 3 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n");
+  write_text(dir_ / "dims.mha",
+             "NDims = 2\nDimSize = 3 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n");
   EXPECT_NE(error_of(dir_ / "dims.mha").find("NDims = 2"), std::string::npos);
   write_text(dir_ / "sizes.nrrd", "NRRD0004\ntype: float\ndimension: 3\nsizes: 4 4\n\n");
   EXPECT_NE(error_of(dir_ / "sizes.nrrd").find("'sizes' has 2 entries"), std::string::npos);
@@ -204,14 +208,15 @@ TEST_F(ImageIo, NrrdSeriesOpensInPythonAsSlicerWould) {
              "import gzip, numpy as np, sys\n"
              "b = open(sys.argv[1], 'rb').read()\n"
              "h, d = b.split(b'\\n\\n', 1)\n"
-             "f = dict(l.split(': ', 1) for l in h.decode().splitlines()[1:] if ': ' in l and not l.startswith('#'))\n"
+             "f = dict(l.split(': ', 1) for l in h.decode().splitlines()[1:] if ': ' in l and not "
+             "l.startswith('#'))\n"
              "assert f['kinds'] == 'list domain domain domain', f['kinds']\n"
              "n = [int(x) for x in f['sizes'].split()]\n"
              "a = np.frombuffer(gzip.decompress(d), '<f4').reshape(n[::-1])\n"
              "print(a[1, 2, 3, 2], a[2, 0, 0, 1])\n");
   const fs::path out = dir_ / "py.txt";
-  ASSERT_EQ(std::system(("/usr/bin/python3 " + script.string() + " " + (dir_ / "s.nrrd").string() + " > " +
-                         out.string())
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + script.string() + " " + (dir_ / "s.nrrd").string() +
+                         " > " + out.string())
                             .c_str()),
             0);
   std::ifstream f(out);

@@ -168,7 +168,9 @@ TEST_F(PatientFile, DetectedSequenceIsKeptBesideTheStoredOne) {
   ValveSequence det = patient_.sequence.resampled(16, 6);
   for (auto& f : det.frames) {
     if (f.la_surface) f.la_surface->points().array() += 1.0;
-    f.annulus = f.la_surface ? Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>(f.la_surface->points().topRows(16)) : f.annulus;
+    f.annulus = f.la_surface ? Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>(
+                                   f.la_surface->points().topRows(16))
+                             : f.annulus;
   }
   patient_.detected = det;
   patient_.detected_by = "model m.yml.gz";
@@ -181,7 +183,8 @@ TEST_F(PatientFile, DetectedSequenceIsKeptBesideTheStoredOne) {
   for (int f = 0; f < det.num_frames(); ++f) {
     if (!det.frames[f].la_surface) continue;
     EXPECT_EQ(q.detected->frames[f].la_surface->points(), det.frames[f].la_surface->points());
-    EXPECT_EQ(q.sequence.frames[f].la_surface->points(), patient_.sequence.frames[f].la_surface->points());
+    EXPECT_EQ(q.sequence.frames[f].la_surface->points(),
+              patient_.sequence.frames[f].la_surface->points());
   }
   // A bad detection is refused before anything is written.
   const auto size = fs::file_size(p);

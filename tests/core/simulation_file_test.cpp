@@ -53,7 +53,8 @@ SimulationRecord sample_record() {
 }
 
 TEST(SimulationFile, RoundTrip) {
-  const fs::path f = fs::temp_directory_path() / ("mvtwin_sim_" + std::to_string(::getpid()) + ".h5");
+  const fs::path f =
+      fs::temp_directory_path() / ("mvtwin_sim_" + std::to_string(::getpid()) + ".h5");
   const SimulationRecord a = sample_record();
   write_simulation_file(f, a);
   EXPECT_EQ(mvtwin_file_format(f), "mvtwin-simulation");

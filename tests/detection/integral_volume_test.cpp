@@ -12,12 +12,14 @@ ImageVolume random_volume(std::uint64_t seed) {
   ImageVolume im;
   im.size = {9, 7, 6};
   Rng rng(seed);
-  for (std::size_t i = 0; i < im.num_voxels(); ++i) im.data.push_back(static_cast<float>(rng.uniform(-5, 250)));
+  for (std::size_t i = 0; i < im.num_voxels(); ++i)
+    im.data.push_back(static_cast<float>(rng.uniform(-5, 250)));
   return im;
 }
 
 /// Brute force over the box clipped to the volume.
-double brute(const ImageVolume& im, Eigen::Vector3i lo, Eigen::Vector3i hi, bool squares, long* count) {
+double brute(const ImageVolume& im, Eigen::Vector3i lo, Eigen::Vector3i hi, bool squares,
+             long* count) {
   double s = 0;
   *count = 0;
   for (int k = std::max(lo[2], 0); k < std::min(hi[2], im.size[2]); ++k)
@@ -53,7 +55,9 @@ TEST(IntegralVolume, FeaturesEqualTheirDefinitionsAndRespondToASheet) {
   im.size = {21, 21, 21};
   im.data.assign(im.num_voxels(), 10.0f);
   for (int k = 0; k < 21; ++k)
-    for (int j = 0; j < 21; ++j) im.data[static_cast<std::size_t>(10) + 21 * (j + 21 * static_cast<std::size_t>(k))] = 200.0f;  // sheet x = 10
+    for (int j = 0; j < 21; ++j)
+      im.data[static_cast<std::size_t>(10) + 21 * (j + 21 * static_cast<std::size_t>(k))] =
+          200.0f;  // sheet x = 10
   const IntegralVolume iv(im);
   const std::vector<int> scales = {2, 4};
   std::vector<float> f(static_cast<std::size_t>(feature_count(scales)));

@@ -55,7 +55,8 @@ TEST(TeeRenderer, LeafletsAreBrightOnDarkBloodAndTheGeometryIsTheProbes) {
   EXPECT_LT((g.axes.col(2) - (c - g.apex).normalized()).norm(), 1e-9);
   const ImageVolume im = render_tee_frame(p.sequence, ed, g, o);
   EXPECT_EQ(im.size[0], 44);
-  EXPECT_LT((im.position(21.5, 21.5, 21.5) - c).norm(), 1e-9) << "the cube is centred on the annulus";
+  EXPECT_LT((im.position(21.5, 21.5, 21.5) - c).norm(), 1e-9)
+      << "the cube is centred on the annulus";
   for (float v : im.data) ASSERT_TRUE(v >= 0.0f && v <= 255.0f);
   const auto [leaflet, around] = leaflet_and_surroundings(im, p.sequence.frames[ed]);
   EXPECT_GT(leaflet, around + 60.0) << "leaflet " << leaflet << " vs surroundings " << around;
@@ -135,7 +136,8 @@ TEST(TeeRenderer, ProbeJitterVariesTheViewWithinItsBounds) {
     const double depth = (g.apex - c).norm();
     EXPECT_GE(depth, o.probe_depth_mm - 8 - 1e-9);
     EXPECT_LE(depth, o.probe_depth_mm + 8 + 1e-9);
-    const double tilt = std::acos(std::clamp((c - g.apex).normalized().dot((c - standard.apex).normalized()), -1.0, 1.0));
+    const double tilt = std::acos(
+        std::clamp((c - g.apex).normalized().dot((c - standard.apex).normalized()), -1.0, 1.0));
     EXPECT_LE(tilt, 15 * M_PI / 180 + 1e-9);
     max_tilt = std::max(max_tilt, tilt);
     const double half = 0.5 * (g.grid.size[0] - 1);

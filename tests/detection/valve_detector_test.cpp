@@ -45,7 +45,9 @@ std::vector<Case> cohort(std::uint64_t first, int n) {
 }
 
 double surface_error(const ValveFrame& detected, const ValveFrame& truth) {
-  return symmetric_surface_distance(detected.la_surface->triangulate(), truth.la_surface->triangulate()).symmetric.mean;
+  return symmetric_surface_distance(detected.la_surface->triangulate(),
+                                    truth.la_surface->triangulate())
+      .symmetric.mean;
 }
 
 TEST(ValveDetector, BeatsTheMeanShapeBaselineOnHeldOutVolumesAndSurvivesASaveLoad) {
@@ -58,7 +60,8 @@ TEST(ValveDetector, BeatsTheMeanShapeBaselineOnHeldOutVolumesAndSurvivesASaveLoa
   std::vector<TrainingVolume> data;
   for (const Case& c : train)
     for (std::size_t k = 0; k < c.frames.size(); ++k)
-      data.push_back({&c.images[k], &c.patient.sequence.frames[static_cast<std::size_t>(c.frames[k])]});
+      data.push_back(
+          {&c.images[k], &c.patient.sequence.frames[static_cast<std::size_t>(c.frames[k])]});
   DetectorOptions o;
   o.trees = 25;
   o.samples_per_volume = 800;
@@ -87,8 +90,12 @@ TEST(ValveDetector, BeatsTheMeanShapeBaselineOnHeldOutVolumesAndSurvivesASaveLoa
       Points3 L(static_cast<Eigen::Index>(kPlacingLandmarks.size()), 3);
       const Points3 mean_l = d.shape().mean_landmarks();
       // The mean landmark configuration, scaled to the training valves' size, at mid.
-      const Similarity s = fit_similarity(d.shape().mean_landmarks(), placing_landmarks(train[0].patient.sequence.frames[static_cast<std::size_t>(train[0].frames[0])]));
-      for (Eigen::Index r = 0; r < L.rows(); ++r) L.row(r) = (mid + s.scale * im.direction * mean_l.row(r).transpose()).transpose();
+      const Similarity s = fit_similarity(
+          d.shape().mean_landmarks(),
+          placing_landmarks(
+              train[0].patient.sequence.frames[static_cast<std::size_t>(train[0].frames[0])]));
+      for (Eigen::Index r = 0; r < L.rows(); ++r)
+        L.row(r) = (mid + s.scale * im.direction * mean_l.row(r).transpose()).transpose();
       b.la_surface = LeafletGrid(d.shape().ures(), d.shape().vres(), d.shape().place_mean(L));
       baseline += surface_error(b, truth);
       ++n;
@@ -101,19 +108,19 @@ TEST(ValveDetector, BeatsTheMeanShapeBaselineOnHeldOutVolumesAndSurvivesASaveLoa
   RecordProperty("detected_mm", std::to_string(detected));
   RecordProperty("baseline_mm", std::to_string(baseline));
   RecordProperty("centre_error_mm", std::to_string(centre));
-  EXPECT_LT(detected, 0.7 * baseline) << "detected " << detected << " mm, mean-shape baseline " << baseline << " mm";
+  EXPECT_LT(detected, 0.7 * baseline)
+      << "detected " << detected << " mm, mean-shape baseline " << baseline << " mm";
   EXPECT_LT(centre, 6.0);
 
   // Save and load: the same detections.
-  const auto dir = std::filesystem::temp_directory_path() / ("mvtwin_det_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("mvtwin_det_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   d.save(dir / "m.yml.gz", {{"test", "yes"}});
   const ValveDetector back = ValveDetector::load(dir / "m.yml.gz");
   const ValveFrame a = d.detect(test[0].images[0]), b = back.detect(test[0].images[0]);
   EXPECT_LT((a.la_surface->points() - b.la_surface->points()).cwiseAbs().maxCoeff(), 1e-6);
-  {
-    std::ofstream(dir / "bad.yml") << "%YAML:1.0\n---\nformat: something-else\n";
-  }
+  { std::ofstream(dir / "bad.yml") << "%YAML:1.0\n---\nformat: something-else\n"; }
   EXPECT_THROW(ValveDetector::load(dir / "bad.yml"), Error);
   EXPECT_THROW(ValveDetector::load(dir / "missing.yml.gz"), Error);
   EXPECT_THROW(d.save(dir / "m.txt", {}), Error);

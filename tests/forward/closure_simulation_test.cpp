@@ -360,8 +360,9 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
     }
     return std::string("(accepted)");
   };
-  EXPECT_NE(message([&] { apply_option("peak_pressure_mmhg=80", &o, "why not"); })
-                .find("a patient parameter, not a simulation option (why not)"),
+  EXPECT_NE(message([&] {
+              apply_option("peak_pressure_mmhg=80", &o, "why not");
+            }).find("a patient parameter, not a simulation option (why not)"),
             std::string::npos);
   EXPECT_NE(message([&] { apply_parameter("dt=0.1", &par); }).find("a simulation option"),
             std::string::npos);

@@ -128,10 +128,12 @@ TEST(PolarDecomposition, MatchesTheSvdAndRefusesInvertedF) {
     for (int k = 0; k < 3; ++k) sigma[k] = std::exp(spread * rng.normal());
     if (trial % 100 == 0) sigma[2] = 1e-6;  // nearly flat
     const Eigen::Matrix3d U =
-        Eigen::AngleAxisd(6.3 * rng.uniform(), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
+        Eigen::AngleAxisd(6.3 * rng.uniform(),
+                          Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
             .toRotationMatrix();
     const Eigen::Matrix3d V =
-        Eigen::AngleAxisd(6.3 * rng.uniform(), Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
+        Eigen::AngleAxisd(6.3 * rng.uniform(),
+                          Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized())
             .toRotationMatrix();
     const Eigen::Matrix3d F = U * sigma.asDiagonal() * V.transpose();
     Eigen::Matrix3d R, S;
@@ -143,7 +145,8 @@ TEST(PolarDecomposition, MatchesTheSvdAndRefusesInvertedF) {
     EXPECT_LT((S - S.transpose()).cwiseAbs().maxCoeff(), 1e-12 * S.norm());
   }
   Eigen::Matrix3d R, S;
-  EXPECT_FALSE(polar_decomposition(Eigen::Vector3d(1, 1, -0.5).asDiagonal().toDenseMatrix(), &R, &S));
+  EXPECT_FALSE(
+      polar_decomposition(Eigen::Vector3d(1, 1, -0.5).asDiagonal().toDenseMatrix(), &R, &S));
   EXPECT_FALSE(polar_decomposition(Eigen::Matrix3d::Zero(), &R, &S));
   Eigen::Matrix3d nan = Eigen::Matrix3d::Identity();
   nan(1, 2) = std::nan("");

@@ -37,8 +37,7 @@ TEST(Delaunay2d, RandomPointsEmptyCircumcirclesAndFullHull) {
                              (b.x() * c.squaredNorm() - c.x() * b.squaredNorm()) / d);
     const double r2 = o2.squaredNorm();
     for (size_t i = 0; i < p.size(); ++i) {
-      if (static_cast<int>(i) == t[0] || static_cast<int>(i) == t[1] ||
-          static_cast<int>(i) == t[2])
+      if (static_cast<int>(i) == t[0] || static_cast<int>(i) == t[1] || static_cast<int>(i) == t[2])
         continue;
       EXPECT_GE((p[i] - a - o2).squaredNorm(), r2 * (1 - 1e-9));
     }

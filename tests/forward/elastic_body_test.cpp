@@ -133,7 +133,8 @@ TEST_P(ElasticBodyPaths, InversionGuardIsABarrierWithConsistentDerivatives) {
     Eigen::VectorXd xp = x, xm = x;
     xp[d] += h;
     xm[d] -= h;
-    worst = std::max(worst, std::abs((guard_part(xp, nullptr) - guard_part(xm, nullptr)) / (2 * h) - gg[d]));
+    worst = std::max(
+        worst, std::abs((guard_part(xp, nullptr) - guard_part(xm, nullptr)) / (2 * h) - gg[d]));
   }
   EXPECT_LT(worst, 1e-5 * gg.cwiseAbs().maxCoeff());
   ASSERT_EQ(body.gradient(x, &g, &rot, &e_on), -1);

@@ -20,8 +20,8 @@ TEST_P(PatchTest, LinearFieldIsReproducedExactly) {
   // Distort the interior vertices.
   Rng rng(11);
   auto on_boundary = [&](const Eigen::RowVector3d& p) {
-    return p.x() < 1e-9 || p.x() > 3 - 1e-9 || p.y() < 1e-9 || p.y() > 3 - 1e-9 ||
-           p.z() < 1e-9 || p.z() > 2 - 1e-9;
+    return p.x() < 1e-9 || p.x() > 3 - 1e-9 || p.y() < 1e-9 || p.y() > 3 - 1e-9 || p.z() < 1e-9 ||
+           p.z() > 2 - 1e-9;
   };
   int moved = 0;
   for (Eigen::Index i = 0; i < box.V.rows(); ++i) {
@@ -93,7 +93,8 @@ TEST_P(PatchTest, LinearFieldIsReproducedExactly) {
   // Curved elements pass to the 4-point rule's accuracy only (det J and the adjugate are
   // cubic): here mid-edge nodes are up to 8 % of an edge off, more than the leaflet's ~3 %.
   const double u_scale = u_exact.cwiseAbs().maxCoeff();
-  EXPECT_LT(worst, (curved ? 1e-3 : 1e-10) * u_scale) << "interior displacement off the linear field";
+  EXPECT_LT(worst, (curved ? 1e-3 : 1e-10) * u_scale)
+      << "interior displacement off the linear field";
 
   // The internal forces of the exact field vanish at interior nodes (equilibrium) ...
   const Eigen::VectorXd f = K * u_exact;
@@ -110,7 +111,8 @@ TEST_P(PatchTest, LinearFieldIsReproducedExactly) {
   Eigen::Matrix<double, 6, 1> ev;
   ev << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(1, 2), 2 * eps(0, 2), 2 * eps(0, 1);
   Eigen::VectorXd x(ndof);
-  for (int i = 0; i < solid.num_nodes(); ++i) x.segment<3>(3 * i) = X.segment<3>(3 * i) + Gs * X.segment<3>(3 * i);
+  for (int i = 0; i < solid.num_nodes(); ++i)
+    x.segment<3>(3 * i) = X.segment<3>(3 * i) + Gs * X.segment<3>(3 * i);
   double energy = 0.0;
   ElementRotations rot;
   Eigen::VectorXd gg;
@@ -119,8 +121,7 @@ TEST_P(PatchTest, LinearFieldIsReproducedExactly) {
   double volume = 0.0;
   for (Eigen::Index e = 0; e < box.T.rows(); ++e) volume += box.volume(static_cast<int>(e));
   EXPECT_NEAR(body.lumped_mass(1.0).sum(), volume, (curved ? 1e-4 : 1e-9) * volume);
-  const Eigen::Matrix<double, 6, 6> C =
-      TransverselyIsotropic::anterior_leaflet().stiffness(fibre);
+  const Eigen::Matrix<double, 6, 6> C = TransverselyIsotropic::anterior_leaflet().stiffness(fibre);
   EXPECT_NEAR(energy, 0.5 * volume * ev.dot(C * ev), (curved ? 1e-3 : 1e-6) * energy);
 }
 

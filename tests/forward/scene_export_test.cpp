@@ -74,9 +74,9 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_scene_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   const auto files = export_scene(scene, o, dir, "test\nsecond line -- with dashes");
-  for (const char* f : {"leaflets.vtu", "leaflets_quadratic.vtu", "chordae.vtp",
-                        "pressure_surface.vtp", "boundary.csv", "annulus_motion.csv",
-                        "boundary.pvd", "valve.feb"}) {
+  for (const char* f :
+       {"leaflets.vtu", "leaflets_quadratic.vtu", "chordae.vtp", "pressure_surface.vtp",
+        "boundary.csv", "annulus_motion.csv", "boundary.pvd", "valve.feb"}) {
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   }
   const std::string feb = slurp(dir / "valve.feb");
@@ -106,8 +106,10 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   for (int u : used) EXPECT_TRUE(defined.count(u)) << "load curve " << u;
   // Well-formed XML, when Debian's python3 is there to check it.
   if (fs::exists("/usr/bin/python3")) {
-    const std::string cmd = "/usr/bin/python3 -c \"import sys, xml.etree.ElementTree as E; "
-                            "E.parse(sys.argv[1])\" " + (dir / "valve.feb").string();
+    const std::string cmd =
+        "/usr/bin/python3 -c \"import sys, xml.etree.ElementTree as E; "
+        "E.parse(sys.argv[1])\" " +
+        (dir / "valve.feb").string();
     EXPECT_EQ(std::system(cmd.c_str()), 0) << "valve.feb is not well-formed XML";
   }
   // boundary.csv: pressure from 0 to the peak, tips at end-diastole first.

@@ -24,8 +24,8 @@ TEST(SymmetricBlockMatrix, AssemblyAndProductMatchADenseMatrix) {
   const int n = 12;
   std::vector<char> free(n, 1);
   free[3] = free[8] = 0;
-  const std::vector<std::vector<int>> cliques = {
-      {0, 1, 2, 3}, {2, 4, 5}, {5, 6, 7, 8, 9}, {9, 10, 11, 0}, {4, 2}, {11, 10}};
+  const std::vector<std::vector<int>> cliques = {{0, 1, 2, 3},   {2, 4, 5}, {5, 6, 7, 8, 9},
+                                                 {9, 10, 11, 0}, {4, 2},    {11, 10}};
   SymmetricBlockMatrix A(free, cliques);
   ASSERT_EQ(A.rows(), 3 * 10);
   std::vector<int> row(n, -1);
@@ -71,7 +71,7 @@ TEST(SymmetricBlockMatrix, AssemblyAndProductMatchADenseMatrix) {
 }
 
 TEST(SymmetricBlockMatrix, BadInputIsNamed) {
-  EXPECT_THROW(SymmetricBlockMatrix({1, 1}, {{0, 2}}), Error);  // node out of range
+  EXPECT_THROW(SymmetricBlockMatrix({1, 1}, {{0, 2}}), Error);     // node out of range
   EXPECT_THROW(SymmetricBlockMatrix({1, 1, 1}, {{0, 1}}), Error);  // free node 2 in no clique
 }
 

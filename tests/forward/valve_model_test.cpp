@@ -59,8 +59,7 @@ TEST_P(ValveModelTest, MeshTagsFibresThickness) {
   ASSERT_EQ(m.annulus_column.size(), static_cast<size_t>(o.ures));
   const LeafletGrid g = ed.resampled(o.ures, ed.vres());
   for (int u = 0; u < o.ures; ++u) {
-    EXPECT_LT((m.mesh.V.row(m.node(m.annulus_column[u], 0)).transpose() - g.at(u, 0)).norm(),
-              1e-6);
+    EXPECT_LT((m.mesh.V.row(m.node(m.annulus_column[u], 0)).transpose() - g.at(u, 0)).norm(), 1e-6);
   }
   // Tags split at s = 1/2; fibres are unit and tangent to the leaflet.
   int anterior = 0;
@@ -222,10 +221,13 @@ TEST(ValveModel, NoisyInputIsSmoothedCleanInputIsNot) {
       EXPECT_GT(noisy.smoothing_passes, 0);
       EXPECT_GT(noisy.min_quality, 0.005) << "seed " << seed << " sd " << sd;
       // The smoothed model's atrial surface against the clean one (same grid sampling).
-      const AtrialSampler sc = make_atrial_sampler(clean, 20, 10), sn = make_atrial_sampler(noisy, 20, 10);
+      const AtrialSampler sc = make_atrial_sampler(clean, 20, 10),
+                          sn = make_atrial_sampler(noisy, 20, 10);
       Eigen::VectorXd xc(3 * clean.mesh.num_nodes()), xn(3 * noisy.mesh.num_nodes());
-      for (int i = 0; i < clean.mesh.num_nodes(); ++i) xc.segment<3>(3 * i) = clean.mesh.V.row(i).transpose();
-      for (int i = 0; i < noisy.mesh.num_nodes(); ++i) xn.segment<3>(3 * i) = noisy.mesh.V.row(i).transpose();
+      for (int i = 0; i < clean.mesh.num_nodes(); ++i)
+        xc.segment<3>(3 * i) = clean.mesh.V.row(i).transpose();
+      for (int i = 0; i < noisy.mesh.num_nodes(); ++i)
+        xn.segment<3>(3 * i) = noisy.mesh.V.row(i).transpose();
       const LeafletGrid gc = sample_atrial(sc, xc), gn = sample_atrial(sn, xn);
       const double mean = (gc.points() - gn.points()).rowwise().norm().mean();
       EXPECT_LT(mean, std::max(0.6, 0.9 * sd)) << "seed " << seed << " sd " << sd;
@@ -243,14 +245,16 @@ TEST(ValveModel, SharpCommissuresLeaveNoNodeWithoutAnElement) {
   int checked = 0;
   for (int seed : {1, 2, 3, 4, 5, 6}) {
     Patient p = make_virtual_patient(static_cast<std::uint64_t>(seed));
-    LeafletGrid& g = *p.sequence.frames[static_cast<std::size_t>(p.sequence.end_diastole)].la_surface;
+    LeafletGrid& g =
+        *p.sequence.frames[static_cast<std::size_t>(p.sequence.end_diastole)].la_surface;
     const int U = g.ures(), V = g.vres();
     for (int u = 0; u < U; ++u) {
       const int d = std::min({u, std::abs(u - U / 2), U - u});  // columns from a commissure
       if (d >= static_cast<int>(ratio.size())) continue;
       const Eigen::Vector3d a = g.at(u, 0);
       for (int v = 1; v < V; ++v)
-        g.points().row(v * U + u) = (a + ratio[static_cast<std::size_t>(d)] * (g.at(u, v) - a)).transpose();
+        g.points().row(v * U + u) =
+            (a + ratio[static_cast<std::size_t>(d)] * (g.at(u, v) - a)).transpose();
     }
     ValveModel m;
     ASSERT_NO_THROW(m = build_valve_model(p.sequence, o)) << "seed " << seed;

@@ -18,7 +18,8 @@ TEST(ClipSites, ParsedAndMappedOntoBothLeaflets) {
   EXPECT_DOUBLE_EQ(c.posterior_s, 0.75) << "... facing the middle of the posterior one";
   const forward::ClipOptions d = clip_options({0.2, 0.8});
   EXPECT_DOUBLE_EQ(d.anterior_s, 0.1);
-  EXPECT_DOUBLE_EQ(d.posterior_s, 0.9) << "both sites the same way from the anterolateral commissure";
+  EXPECT_DOUBLE_EQ(d.posterior_s, 0.9)
+      << "both sites the same way from the anterolateral commissure";
   EXPECT_DOUBLE_EQ(d.anterior_t, 0.8);
   for (const char* bad : {"", "0.5,x", "1.2,1", "0,1", "0.5,0.1", "0.5 1"})
     EXPECT_THROW(parse_clip_sites(bad), Error) << bad;

@@ -1,8 +1,8 @@
 #include <cmath>
 #include <random>
 
-#include <Eigen/Dense>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include "mvtwin/inverse/calibration.h"
 
@@ -11,7 +11,8 @@ namespace {
 
 CalibrationResult with_specs(int n) {
   CalibrationResult r;
-  for (int i = 0; i < n; ++i) r.specs.push_back({"p" + std::to_string(i), "g", "1", 0, 2, 1, 0.05, 1});
+  for (int i = 0; i < n; ++i)
+    r.specs.push_back({"p" + std::to_string(i), "g", "1", 0, 2, 1, 0.05, 1});
   return r;
 }
 
@@ -38,7 +39,7 @@ TEST(Uncertainty, LinearLeastSquaresCovariance) {
 TEST(Uncertainty, ParametersTheDataDoNotSeeAreUnidentified) {
   Eigen::MatrixXd J = Eigen::MatrixXd::Zero(50, 3);
   J.col(0).setLinSpaced(50, 1.0, 2.0);
-  J.col(1) = J.col(0);  // only their sum is seen
+  J.col(1) = J.col(0);        // only their sum is seen
   J.col(2).setConstant(0.0);  // not seen at all
   CalibrationResult r = with_specs(3);
   fill_uncertainty(J, 0.3, &r);

@@ -25,8 +25,8 @@ using mvtwin::ImageVolume;
 using mvtwin::Landmark;
 using mvtwin::LeafletGrid;
 using mvtwin::Patient;
-using mvtwin::SymmetricDistance;
 using mvtwin::symmetric_surface_distance;
+using mvtwin::SymmetricDistance;
 
 struct CmdResult {
   int code;
@@ -61,9 +61,9 @@ class Cli : public ::testing::Test {
 };
 
 TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model", "simulate",
-                        "calibrate", "clip", "study cohort", "study sensitivity", "study convergence",
-                        "study clip", "study robustness", "study detection"}) {
+  for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model",
+                        "simulate", "calibrate", "clip", "study cohort", "study sensitivity",
+                        "study convergence", "study clip", "study robustness", "study detection"}) {
     const CmdResult r = run(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c;
     EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
@@ -143,7 +143,8 @@ TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
 
 TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
 #ifdef __SANITIZE_ADDRESS__
-  GTEST_SKIP() << "simulating, rendering and training forests takes too long under AddressSanitizer";
+  GTEST_SKIP()
+      << "simulating, rendering and training forests takes too long under AddressSanitizer";
 #endif
   // Refusals first: nothing to train on; both sources at once.
   CmdResult r = run("train-detector --out " + path("m.yml.gz"));
@@ -158,8 +159,10 @@ TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
 
   // A small virtual training cohort (coarse voxels, small forests), its truths cached.
   const std::string small =
-      " --voxel 2.5 --trees 8 --samples 300 --jobs 2 --truth-set ures=16 --truth-set vres=8 --train-noise 0.004"
-      " --cache " + path("cache");
+      " --voxel 2.5 --trees 8 --samples 300 --jobs 2 --truth-set ures=16 --truth-set vres=8 "
+      "--train-noise 0.004"
+      " --cache " +
+      path("cache");
   r = run("train-detector --virtual 3 --cohort-seed 77 --out " + path("m.yml.gz") + small);
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("training on "), std::string::npos) << r.out;
@@ -171,16 +174,18 @@ TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
   // The detection study of that model on one held-out patient (its truth cached beside the
   // others); its figures say what made them.
   const std::string study = "study detection --model " + path("m.yml.gz") +
-                            " --test 1 --seed 77 --noise-levels 0.004,0.1 --out " + path("d") + small;
+                            " --test 1 --seed 77 --noise-levels 0.004,0.1 --out " + path("d") +
+                            small;
   r = run(study);
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   std::ifstream f(path("d/study.json"));
   std::stringstream js;
   js << f.rdbuf();
   const std::string j = js.str();
-  for (const char* key : {"\"error_mean_mm\"", "\"error_sd_mm\"", "\"landmark_error_mm\"", "\"papillary_error_mm\"",
-                          "\"s_per_volume\"", "\"test_patients\"", "\"noise_levels\"",
-                          "\"posteromedial_papillary_tip\"", "\"synthetic\": true", "\"mvtwin_version\""})
+  for (const char* key :
+       {"\"error_mean_mm\"", "\"error_sd_mm\"", "\"landmark_error_mm\"", "\"papillary_error_mm\"",
+        "\"s_per_volume\"", "\"test_patients\"", "\"noise_levels\"",
+        "\"posteromedial_papillary_tip\"", "\"synthetic\": true", "\"mvtwin_version\""})
     EXPECT_NE(j.find(key), std::string::npos) << key << " missing from\n" << j.substr(0, 2000);
   EXPECT_NE(r.out.find("paper (real TEE"), std::string::npos) << r.out;
   EXPECT_NE(r.err.find("[detect 2/2]"), std::string::npos) << r.err;
@@ -215,7 +220,8 @@ TEST_F(Cli, ImportRealSegmentation) {
   const fs::path seg = fs::path(MVTWIN_SHARED_DATA_DIR) / "mvtool-008" / "008_gt.nii.gz";
   if (!fs::exists(seg))
     GTEST_SKIP() << "../shared/data absent (a user's clone has no ../shared): skipped";
-  CmdResult r = run("import --frame " + seg.string() + " --out " + path("008.h5") + " --json " + path("008.json"));
+  CmdResult r = run("import --frame " + seg.string() + " --out " + path("008.h5") + " --json " +
+                    path("008.json"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("surface -> mask"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("the leaflet rim is"), std::string::npos) << r.out;  // both annuli reported
@@ -224,11 +230,14 @@ TEST_F(Cli, ImportRealSegmentation) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.find("SYNTHETIC"), std::string::npos);  // real data is never labelled synthetic
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;  // the papillary tips
-  EXPECT_NE(r.out.find("import    frame 0"), std::string::npos) << r.out;  // the fit, as import printed it
+  EXPECT_NE(r.out.find("import    frame 0"), std::string::npos)
+      << r.out;  // the fit, as import printed it
   EXPECT_NE(r.out.find("surface -> mask"), std::string::npos) << r.out;
   const fs::path pred = seg.parent_path() / "008_pred.nii.gz";
   ASSERT_EQ(run("import --frame " + pred.string() + " --out " + path("pred.h5")).code, 0);
-  ASSERT_EQ(run("import --frame " + seg.string() + " --no-annulus-label --out " + path("rim.h5")).code, 0);
+  ASSERT_EQ(
+      run("import --frame " + seg.string() + " --no-annulus-label --out " + path("rim.h5")).code,
+      0);
   r = run("distance " + path("008.h5") + " " + path("pred.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("symmetric: "), std::string::npos);
@@ -251,13 +260,16 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "a closure simulation takes too long under AddressSanitizer";
 #endif
-  CmdResult r = run("phantom --seed 4 --simulate-closure --noise 0 --closure-set ures=16 --closure-set vres=10 "
-                    "--closure-set dt=0.01 --closure-set layers=1 --out " + path("v.h5"));
+  CmdResult r = run(
+      "phantom --seed 4 --simulate-closure --noise 0 --closure-set ures=16 --closure-set vres=10 "
+      "--closure-set dt=0.01 --closure-set layers=1 --out " +
+      path("v.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   const Patient v = mvtwin::read_patient(path("v.h5"));
   const int ed = v.sequence.end_diastole, fc = v.sequence.first_closed;
-  r = run("export " + path("v.h5") + " --labelmap " + path("seg") + " --convention mvseg --voxel 0.8 --frames " +
-          std::to_string(ed) + "," + std::to_string(fc));
+  r = run("export " + path("v.h5") + " --labelmap " + path("seg") +
+          " --convention mvseg --voxel 0.8 --frames " + std::to_string(ed) + "," +
+          std::to_string(fc));
   ASSERT_EQ(r.code, 0) << r.err;
   char name[64];
   std::snprintf(name, sizeof name, "seg/frame_%02d.nii.gz", ed);
@@ -270,12 +282,13 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
   std::snprintf(t_ed, sizeof t_ed, "%.4f", v.sequence.frames[ed].time_s);
   std::snprintf(t_fc, sizeof t_fc, "%.4f", v.sequence.frames[fc].time_s);
   // Duplicate frame times are refused, and nothing is written.
-  r = run("import --convention mvseg --frame " + f_ed + "@0.1 --frame " + f_fc + "@0.1 --out " + path("dup.h5"));
+  r = run("import --convention mvseg --frame " + f_ed + "@0.1 --frame " + f_fc + "@0.1 --out " +
+          path("dup.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("have the same time"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(path("dup.h5")));
-  r = run("import --convention mvseg --frame " + f_fc + "@" + t_fc + " --frame " + f_ed + "@" + t_ed + " --markups " + m_ed + "@" + t_ed +
-          " --out " + path("imp.h5"));
+  r = run("import --convention mvseg --frame " + f_fc + "@" + t_fc + " --frame " + f_ed + "@" +
+          t_ed + " --markups " + m_ed + "@" + t_ed + " --out " + path("imp.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("[end-diastole]"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("[first closed]"), std::string::npos) << r.out;
@@ -288,12 +301,15 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
   // The tips came from the markups (held in the closed frame, which had none: noted as assumed).
   EXPECT_FALSE(imp.sequence.frames[0].assumed(Landmark::kAnterolateralPapillaryTip));
   EXPECT_LT((imp.sequence.frames[0].landmark(Landmark::kAnterolateralPapillaryTip) -
-             v.sequence.frames[ed].landmark(Landmark::kAnterolateralPapillaryTip)).norm(), 1e-3);
+             v.sequence.frames[ed].landmark(Landmark::kAnterolateralPapillaryTip))
+                .norm(),
+            1e-3);
   EXPECT_TRUE(imp.sequence.frames[1].assumed(Landmark::kAnterolateralPapillaryTip));
   // Each imported surface lies on the virtual one.
   for (int k = 0; k < 2; ++k) {
-    const SymmetricDistance d = symmetric_surface_distance(imp.sequence.frames[k].la_surface->triangulate(),
-                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    const SymmetricDistance d =
+        symmetric_surface_distance(imp.sequence.frames[k].la_surface->triangulate(),
+                                   v.sequence.frames[k ? fc : ed].la_surface->triangulate());
     EXPECT_LT(d.symmetric.mean, 0.5) << "frame " << k;
   }
   // The end-diastolic map as 3D Slicer writes a segmentation: .seg.nrrd, LPS, unsigned char,
@@ -307,25 +323,36 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
       return std::string(b);
     };
     const Eigen::Vector3d flip(-1, -1, 1);
-    o << "NRRD0004\n# Complete NRRD file format specification at:\n# http://teem.sourceforge.net/nrrd/format.html\n"
-      << "type: unsigned char\ndimension: 3\nspace: left-posterior-superior\nsizes: " << im.size[0] << " "
-      << im.size[1] << " " << im.size[2] << "\nspace directions:";
-    for (int k = 0; k < 3; ++k) o << " " << vec(flip.cwiseProduct(im.direction.col(k) * im.spacing[k]));
-    o << "\nkinds: domain domain domain\nencoding: raw\nspace origin: " << vec(flip.cwiseProduct(im.origin)) << "\n"
-      << "Segment0_Color:=0.5 0.7 0.3\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n"
-      << "Segment0_Name:=Posterior leaflet\nSegment1_ID:=Segment_2\nSegment1_LabelValue:=2\nSegment1_Layer:=0\n"
+    o << "NRRD0004\n# Complete NRRD file format specification at:\n# "
+         "http://teem.sourceforge.net/nrrd/format.html\n"
+      << "type: unsigned char\ndimension: 3\nspace: left-posterior-superior\nsizes: " << im.size[0]
+      << " " << im.size[1] << " " << im.size[2] << "\nspace directions:";
+    for (int k = 0; k < 3; ++k)
+      o << " " << vec(flip.cwiseProduct(im.direction.col(k) * im.spacing[k]));
+    o << "\nkinds: domain domain domain\nencoding: raw\nspace origin: "
+      << vec(flip.cwiseProduct(im.origin)) << "\n"
+      << "Segment0_Color:=0.5 0.7 "
+         "0.3\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n"
+      << "Segment0_Name:=Posterior "
+         "leaflet\nSegment1_ID:=Segment_2\nSegment1_LabelValue:=2\nSegment1_Layer:=0\n"
       << "Segment1_Name:=Anterior leaflet\nSegmentation_MasterRepresentation:=Binary labelmap\n\n";
-    for (float label : im.data) o.put(static_cast<char>(static_cast<unsigned char>(std::lround(label))));
+    for (float label : im.data)
+      o.put(static_cast<char>(static_cast<unsigned char>(std::lround(label))));
   }
   r = run("import --frame " + path("ed.seg.nrrd") + "@" + t_ed + " --frame " + f_fc + "@" + t_fc +
           " --convention mvseg --markups " + m_ed + "@" + t_ed + " --out " + path("seg.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   const Patient seg = mvtwin::read_patient(path("seg.h5"));
-  EXPECT_LT((seg.sequence.frames[0].la_surface->points() - imp.sequence.frames[0].la_surface->points()).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT(
+      (seg.sequence.frames[0].la_surface->points() - imp.sequence.frames[0].la_surface->points())
+          .cwiseAbs()
+          .maxCoeff(),
+      1e-6);
   // The same frames as leaflet surface meshes: two files at end-diastole (STL and PLY, in LPS as
   // 3D Slicer writes them, with its SPACE mark), one file holding both leaflets when closed.
   for (int k = 0; k < 2; ++k) {
-    auto [anterior_mesh, posterior_mesh] = mvtwin::detection::leaflet_surface_meshes(*v.sequence.frames[k ? fc : ed].la_surface, 48, 30);
+    auto [anterior_mesh, posterior_mesh] = mvtwin::detection::leaflet_surface_meshes(
+        *v.sequence.frames[k ? fc : ed].la_surface, 48, 30);
     mvtwin::TriangleMesh leaf[2] = {anterior_mesh, posterior_mesh};
     for (int l = 0; l < 2 && k == 0; ++l) leaf[l].V.leftCols(2) *= -1.0;  // LPS
     if (k == 0) {
@@ -340,50 +367,60 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
       mvtwin::write_surface_mesh(path("fc.vtp"), both, "RAS");
     }
   }
-  r = run("import --mesh " + path("ed_al.stl") + "," + path("ed_pl.ply") + "@" + t_ed + " --mesh " + path("fc.vtp") + "@" + t_fc +
-          " --markups " + m_ed + "@" + t_ed + " --out " + path("mesh.h5"));
+  r = run("import --mesh " + path("ed_al.stl") + "," + path("ed_pl.ply") + "@" + t_ed + " --mesh " +
+          path("fc.vtp") + "@" + t_fc + " --markups " + m_ed + "@" + t_ed + " --out " +
+          path("mesh.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   const Patient mesh = mvtwin::read_patient(path("mesh.h5"));
   for (int k = 0; k < 2; ++k) {
-    const SymmetricDistance d = symmetric_surface_distance(mesh.sequence.frames[k].la_surface->triangulate(),
-                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    const SymmetricDistance d =
+        symmetric_surface_distance(mesh.sequence.frames[k].la_surface->triangulate(),
+                                   v.sequence.frames[k ? fc : ed].la_surface->triangulate());
     EXPECT_LT(d.symmetric.mean, 0.5) << "mesh frame " << k;
   }
   // Both frames as one 3D+t label map (3D Slicer's .seq.nrrd, times in the file).
-  r = run("export " + path("v.h5") + " --labelmap " + path("seq") + " --sequence --convention mvtool --frames " +
-          std::to_string(ed) + "," + std::to_string(fc));
+  r = run("export " + path("v.h5") + " --labelmap " + path("seq") +
+          " --sequence --convention mvtool --frames " + std::to_string(ed) + "," +
+          std::to_string(fc));
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_TRUE(fs::exists(path("seq/labels.seq.nrrd")));
-  r = run("import --sequence " + path("seq/labels.seq.nrrd") + " --markups " + m_ed + "@" + t_ed + " --out " + path("seq.h5"));
+  r = run("import --sequence " + path("seq/labels.seq.nrrd") + " --markups " + m_ed + "@" + t_ed +
+          " --out " + path("seq.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   const Patient sq = mvtwin::read_patient(path("seq.h5"));
   ASSERT_EQ(sq.sequence.num_frames(), 2);
   EXPECT_NEAR(sq.sequence.frames[1].time_s, v.sequence.frames[fc].time_s, 1e-4);
   for (int k = 0; k < 2; ++k) {
-    const SymmetricDistance d = symmetric_surface_distance(sq.sequence.frames[k].la_surface->triangulate(),
-                                                           v.sequence.frames[k ? fc : ed].la_surface->triangulate());
+    const SymmetricDistance d =
+        symmetric_surface_distance(sq.sequence.frames[k].la_surface->triangulate(),
+                                   v.sequence.frames[k ? fc : ed].la_surface->triangulate());
     EXPECT_LT(d.symmetric.mean, 0.5) << "sequence frame " << k;
   }
   // The benchmark's figures and fields (one patient, one voxel size: the command, not the numbers).
-  r = run("bench import --patients 1 --voxels 0.8 --closure-set ures=16 --closure-set vres=10 --json " + path("bench.json"));
+  r = run(
+      "bench import --patients 1 --voxels 0.8 --closure-set ures=16 --closure-set vres=10 --json " +
+      path("bench.json"));
   ASSERT_EQ(r.code, 0) << r.err;
   {
     std::ifstream in(path("bench.json"));
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    for (const char* key : {"\"rows\"", "\"voxel_mm\"", "\"convention\"", "\"surface_error_open_mm\"",
-                            "\"surface_error_closed_mm\"", "\"annulus_error_mm\"", "\"s_per_frame\"", "\"mvseg\"",
-                            "\"mvtool\"", "SYNTHETIC"})
+    for (const char* key :
+         {"\"rows\"", "\"voxel_mm\"", "\"convention\"", "\"surface_error_open_mm\"",
+          "\"surface_error_closed_mm\"", "\"annulus_error_mm\"", "\"s_per_frame\"", "\"mvseg\"",
+          "\"mvtool\"", "SYNTHETIC"})
       EXPECT_NE(text.find(key), std::string::npos) << key;
   }
   r = run("bench import --patients 1 --closure-set peak_pressure_mmhg=80");
   EXPECT_EQ(r.code, 1);  // a parameter is refused, not silently dropped
   EXPECT_NE(r.err.find("a patient parameter"), std::string::npos) << r.err;
-  r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") + " --set ures=16 --set vres=10");
+  r = run("simulate " + path("imp.h5") + " --out " + path("imp_sim.h5") +
+          " --set ures=16 --set vres=10");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("ASSUMED"), std::string::npos) << r.out;
   r = run("info " + path("imp_sim.h5"));  // the result file records what its input assumed
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("input ASSUMED (estimated from published anatomy, not observed): anterolateral_papillary_tip"),
+  EXPECT_NE(r.out.find("input ASSUMED (estimated from published anatomy, not observed): "
+                       "anterolateral_papillary_tip"),
             std::string::npos)
       << r.out;
 }
@@ -392,11 +429,13 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
 
 TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   // A patient parameter given as a model option is refused, not dropped.
-  CmdResult r = run("study cohort --quick --patients 1 --observe-set peak_pressure_mmhg=80 --out " + path("c"));
+  CmdResult r = run("study cohort --quick --patients 1 --observe-set peak_pressure_mmhg=80 --out " +
+                    path("c"));
   EXPECT_EQ(r.code, 1) << r.out << r.err;
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(path("c") + "/study.json"));
-  r = run("study sensitivity --quick --set restlength_factor_anterolateral_marginal=1.1 --out " + path("s"));
+  r = run("study sensitivity --quick --set restlength_factor_anterolateral_marginal=1.1 --out " +
+          path("s"));
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
   r = run("study cohort --quick --set no_such_option=1 --out " + path("c"));

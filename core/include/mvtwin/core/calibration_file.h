@@ -28,9 +28,9 @@ struct CalibrationRecord {
   Eigen::VectorXd truth;
   std::vector<int> identified;  ///< 1 where the data determine the parameter
   Eigen::MatrixXd covariance, correlation;
-  double noise_mm = 0;          ///< the noise SD the covariance is scaled by
+  double noise_mm = 0;  ///< the noise SD the covariance is scaled by
 
-  ValveParameters parameters;   ///< the full fitted set (unfitted ones at their defaults)
+  ValveParameters parameters;  ///< the full fitted set (unfitted ones at their defaults)
   double error_before_mm = 0, error_after_mm = 0;
   int simulations = 0, failed_simulations = 0, cache_hits = 0;
   double wall_s = 0;

@@ -15,8 +15,8 @@ struct ClosureMeasures {
   /// Regurgitant orifice: the part of the annulus opening that a ray from the atrium, along the
   /// annulus-plane normal, crosses without hitting a leaflet (mm^2).
   double orifice_area_mm2 = 0.0;
-  double resolution_mm = 0.0;     ///< pixel size of the rasterization
-  int orifice_components = 0;     ///< separate openings (2 after a successful clip, 0 if closed)
+  double resolution_mm = 0.0;  ///< pixel size of the rasterization
+  int orifice_components = 0;  ///< separate openings (2 after a successful clip, 0 if closed)
   std::vector<double> component_areas_mm2;  ///< area of each opening, largest first
 };
 

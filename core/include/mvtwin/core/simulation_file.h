@@ -19,20 +19,20 @@ namespace mvtwin {
 struct SimulationRecord {
   std::string patient_id;
   std::string patient_file;
-  bool synthetic = false;    ///< the simulated patient is a virtual one
-  Provenance provenance;     ///< version, command, time; seed of the patient when synthetic
+  bool synthetic = false;  ///< the simulated patient is a virtual one
+  Provenance provenance;   ///< version, command, time; seed of the patient when synthetic
   std::vector<std::pair<std::string, std::string>> options;  ///< every simulation option
   ValveParameters parameters;
-  std::string status;        ///< "converged" or "failed"
+  std::string status;  ///< "converged" or "failed"
   /// The typed outcome (core/outcome.h: converged, inverted_element, leaflet_crossing, ...);
   /// empty in files written before it was recorded.
   std::string outcome;
-  std::string reason;        ///< why it failed
+  std::string reason;                                   ///< why it failed
   std::vector<std::pair<std::string, double>> summary;  ///< steps, timings, contacts, ...
 
   // Time series (one entry per recorded sample; the last is the end state).
-  std::vector<double> time_s, observed_time_s, anterior_tip_mm, posterior_tip_mm,
-      orifice_area_mm2, annulus_area_mm2;
+  std::vector<double> time_s, observed_time_s, anterior_tip_mm, posterior_tip_mm, orifice_area_mm2,
+      annulus_area_mm2;
   std::vector<LeafletGrid> la_surface;  ///< atrial surface per sample, same grid
 
   // End state: the corner (linear) mesh at rest with tags and fibres, its nodes at the end,

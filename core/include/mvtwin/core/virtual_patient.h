@@ -45,6 +45,7 @@ struct CohortMember {
 };
 CohortMember cohort_member(std::uint64_t cohort_seed, int index);
 /// make_virtual_patient of cohort_member(cohort_seed, index) with its pathology and id.
-Patient make_cohort_patient(std::uint64_t cohort_seed, int index, VirtualPatientOptions options = {});
+Patient make_cohort_patient(std::uint64_t cohort_seed, int index,
+                            VirtualPatientOptions options = {});
 
 }  // namespace mvtwin

@@ -44,7 +44,8 @@ class ShapeModel {
   /// Trains from frames that have an LA surface and observed placing landmarks, on the grid of
   /// the first (others are resampled). Keeps the modes that explain `variance_kept` of the
   /// variance. Throws mvtwin::Error with fewer than 3 usable frames.
-  static ShapeModel train(const std::vector<const ValveFrame*>& frames, double variance_kept = 0.98);
+  static ShapeModel train(const std::vector<const ValveFrame*>& frames,
+                          double variance_kept = 0.98);
 
   int ures() const { return ures_; }
   int vres() const { return vres_; }

@@ -56,7 +56,8 @@ class ValveDetector {
 
   /// Trains every stage. Throws mvtwin::Error for invalid options or too few usable volumes
   /// (each needs observed landmarks and an LA surface). `progress` receives stage names.
-  static ValveDetector train(const std::vector<TrainingVolume>& data, const DetectorOptions& options,
+  static ValveDetector train(const std::vector<TrainingVolume>& data,
+                             const DetectorOptions& options,
                              const std::function<void(const std::string&)>& progress = {});
 
   /// Detects the valve in one volume; with `previous` (the detection in the frame before),
@@ -74,11 +75,13 @@ class ValveDetector {
 
   /// A single file (OpenCV FileStorage, .yml.gz) holding the options, the shape model, the
   /// forests and `provenance` (name = value lines). Written atomically.
-  void save(const std::filesystem::path& path, const std::vector<std::pair<std::string, std::string>>& provenance) const;
+  void save(const std::filesystem::path& path,
+            const std::vector<std::pair<std::string, std::string>>& provenance) const;
   /// Throws mvtwin::Error naming the file when it is missing or not an mvtwin detector model.
   static ValveDetector load(const std::filesystem::path& path);
   /// The provenance a model file records (name = value), without loading its forests.
-  static std::vector<std::pair<std::string, std::string>> provenance(const std::filesystem::path& path);
+  static std::vector<std::pair<std::string, std::string>> provenance(
+      const std::filesystem::path& path);
 
  private:
   struct Impl;

@@ -33,8 +33,8 @@ struct ModelOptions {
   /// elements. When the end-diastolic grid's roughness (grid_roughness: an estimate of the
   /// noise SD) exceeds this, it is smoothed (Taubin passes on every row but the annulus) until
   /// it is below a tenth of it, at most max_smoothing_passes passes (measured: 0.3-1 mm noise
-  /// then builds elements of quality >= 0.005, within 0.6 mm of the clean surface). Clean grids are left as they
-  /// are. 0 switches smoothing off.
+  /// then builds elements of quality >= 0.005, within 0.6 mm of the clean surface). Clean grids are
+  /// left as they are. 0 switches smoothing off.
   double smoothing_roughness_mm = 0.1;
   int max_smoothing_passes = 50;
 

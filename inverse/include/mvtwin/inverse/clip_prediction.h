@@ -28,7 +28,7 @@ struct ClosureQuality {
   int orifice_components = 0;
   std::vector<double> component_areas_mm2;  ///< largest first
   Coaptation coaptation;
-  std::vector<double> clip_gap_mm;          ///< per clip, at the end
+  std::vector<double> clip_gap_mm;  ///< per clip, at the end
 };
 ClosureQuality closure_quality(const forward::ClosureResult& r);
 

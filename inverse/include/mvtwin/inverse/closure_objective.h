@@ -32,12 +32,12 @@ struct Evaluation {
   /// kConverged when ok; else the simulation's outcome, kNonFiniteState for non-finite
   /// distances, kInvalidInput for anything else refused (a mvtwin::Error).
   Outcome outcome = Outcome::kInvalidInput;
-  std::string reason;          ///< why it failed
+  std::string reason;  ///< why it failed
   /// Point-to-mesh distances, mm, in a fixed order: per compared frame, the observed grid
   /// points (annulus row excluded: it is prescribed) to the simulated surface, then the
   /// simulated grid points to the observed surface (so a valve that stays open is seen).
   Eigen::VectorXd residuals;
-  double mean_mm = 0;          ///< mean of the distances (symmetric point-to-mesh error)
+  double mean_mm = 0;  ///< mean of the distances (symmetric point-to-mesh error)
   double wall_s = 0;
   bool cached = false;
 };
