@@ -62,7 +62,7 @@ Pathology draw_pathology(Rng& rng) {
 Draw draw_anatomy(Rng& rng, Pathology pathology) {
   Draw d;
   d.pathology = pathology;
-  // Annulus at end-diastole (SPEC Sec. 8: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
+  // Annulus at end-diastole (docs/virtual-patients.md: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
   // LM/IT 1.44, height/commissural width 10.6 +- 3.7 % in diastole, 13.5 % early systole).
   d.alpm_diameter = rng.truncated_normal(39.5, 2.5, 33.0, 46.0);
   d.ap_diameter = d.alpm_diameter * rng.truncated_normal(0.77, 0.035, 0.68, 0.86);
@@ -252,9 +252,9 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
 /// leaflet columns (fractions s and 1-s of the way round, i.e. the same distance from the
 /// anterolateral commissure) meet on the chord between their annulus points, each reaching in
 /// proportion to its length, and their excess length hangs together into the ventricle (the
-/// coaptation zone). Chordae sites follow SPEC Sec. 3 (28 marginal on the free edge, 8 basal at
-/// mid-leaflet); a chorda belongs to the anterolateral papillary tip when s < 1/4 or s >= 3/4.
-/// Everything in the valve frame.
+/// coaptation zone). Chordae sites follow Mansi et al. 2012, Sec. 2.2 (28 marginal on the free
+/// edge, 8 basal at mid-leaflet); a chorda belongs to the anterolateral papillary tip when s < 1/4
+/// or s >= 3/4. Everything in the valve frame.
 std::array<double, kNumChordaeGroups> closure_taut_restlength(
     const LeafletGrid& ed, const Curve& annulus_closed, const Eigen::Vector3d& tip_al_ed,
     const Eigen::Vector3d& tip_pm_ed, const Eigen::Vector3d& tip_al_closed,
@@ -348,7 +348,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   p.provenance.command = options.command;
   p.provenance.created_utc = utc_now_iso8601();
   p.provenance.seed = seed;
-  p.provenance.source = "mvtwin virtual patient generator (geometric open frames; SPEC Sec. 8)";
+  p.provenance.source =
+      "mvtwin virtual patient generator (geometric open frames; docs/virtual-patients.md)";
   ValveSequence& seq = p.sequence;
   seq.ures = ures;
   seq.vres = vres;

@@ -521,7 +521,8 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
   for (const auto& t : sm.triangles)
     m.ventricular_faces.emplace_back(m.node(t[0], L), m.node(t[1], L), m.node(t[2], L));
 
-  // Chordae (SPEC Sec. 3) at the surface node nearest to their site; each to the tip on its side.
+  // Chordae (Mansi et al. 2012, Sec. 2.2) at the surface node nearest to their site; each to the
+  // tip on its side.
   auto nearest = [&](double s_site, double t_site, bool on_free_edge) {
     const double xi = un.xi(s_site);
     const double depth = t_site * un.free_edge(xi);

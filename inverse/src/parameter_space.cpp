@@ -12,8 +12,9 @@ namespace mvtwin::inverse {
 const std::vector<ParameterSpec>& parameter_catalogue() {
   static const std::vector<ParameterSpec> catalogue = [] {
     std::vector<ParameterSpec> c;
-    // Bounds cover the virtual cohort's pathologies (elongated chordae up to 1.5, SPEC Sec. 8)
-    // with room; the scales are the size of a change that moves the closed valve visibly.
+    // Bounds cover the virtual cohort's pathologies (elongated chordae up to 1.5,
+    // docs/virtual-patients.md) with room; the scales are the size of a change that moves the
+    // closed valve visibly.
     for (int g = 0; g < kNumChordaeGroups; ++g) {
       c.push_back({"restlength_factor_" + std::string(kChordaeGroupNames[g]), "restlength", "1",
                    0.7, 1.6, 1.0, 0.05, 1.0});

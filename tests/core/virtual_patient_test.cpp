@@ -108,8 +108,8 @@ struct Sample {
   }
 };
 
-// Statistics over 200 virtual patients against the published ranges of SPEC Sec. 8. Normal
-// anatomy is checked on the patients without a dilated annulus (normal, stiff leaflets,
+// Statistics over 200 virtual patients against the published ranges of docs/virtual-patients.md.
+// Normal anatomy is checked on the patients without a dilated annulus (normal, stiff leaflets,
 // ruptured chordae); the functional-MR class must be dilated relative to them.
 TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
   std::map<std::string, Sample> s;
@@ -169,7 +169,7 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
     const Eigen::Vector3d ppm = ed.landmark(Landmark::kPosteromedialPapillaryTip);
     s["papillary_depth"].add(-0.5 * (plane.signed_distance(pal) + plane.signed_distance(ppm)));
     s["papillary_separation"].add((pal - ppm).norm());
-    // Marginal chordae (SPEC Sec. 3: 28 on the free edge) to the tip on their side.
+    // Marginal chordae (Mansi et al. 2012, Sec. 2.2: 28 on the free edge) to the tip on their side.
     for (int k = 0; k < 28; ++k) {
       const double su = static_cast<double>(k) / 28.0;
       const Eigen::Vector3d ins = g.sample(su, 1.0);

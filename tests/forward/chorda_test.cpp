@@ -9,7 +9,7 @@ namespace {
 
 TEST(ChordaLaw, PaperValuesInInternalUnits) {
   const ChordaLaw m = ChordaLaw::marginal(), b = ChordaLaw::basal();
-  EXPECT_NEAR(m.e_low, 3.06, 0.005);  // SPEC Sec. 4
+  EXPECT_NEAR(m.e_low, 3.06, 0.005);  // Mansi et al. 2012, Sec. 2.3
   EXPECT_NEAR(m.e_high, 33.4, 0.05);
   EXPECT_NEAR(b.e_low, 0.647, 0.001);
   EXPECT_NEAR(b.e_high, 20.8, 0.05);

@@ -277,9 +277,9 @@ TEST(ClosureSimulation, DefaultPatientClosesWithLargeStepsNearThePapersStep) {
   EXPECT_LT(std::max(ab.max, ba.max), 4.0);
 }
 
-// A clip (SPEC Sec. 5) between the middles of the two free edges: during the clip phase the
-// sites, about 20 mm apart in the open valve, are pulled together until the leaflets touch;
-// the clipped open valve has a smaller orifice, and the closure that follows keeps the clip
+// A clip (Mansi et al. 2012, Sec. 2.4) between the middles of the two free edges: during the clip
+// phase the sites, about 20 mm apart in the open valve, are pulled together until the leaflets
+// touch; the clipped open valve has a smaller orifice, and the closure that follows keeps the clip
 // closed and the leaflets apart.
 TEST(ClosureSimulation, ClipPullsTheSitesTogetherAndHolds) {
 #ifdef __SANITIZE_ADDRESS__

@@ -5,9 +5,10 @@
 
 namespace mvtwin {
 
-/// Annulus size and shape of one frame, as reported in the echo literature (SPEC Sec. 8).
-/// All lengths in mm, areas in mm^2. Computed from the annulus curve (refined by the periodic
-/// spline of the grid) and the grid convention (commissures at u = 0 and ures/2).
+/// Annulus size and shape of one frame, as reported in the echo literature
+/// (docs/virtual-patients.md). All lengths in mm, areas in mm^2. Computed from the annulus curve
+/// (refined by the periodic spline of the grid) and the grid convention (commissures at u = 0 and
+/// ures/2).
 struct AnnulusMeasures {
   double perimeter_mm = 0.0;
   /// Area of the triangle fan from the curve's centroid: the 3D annulus area.

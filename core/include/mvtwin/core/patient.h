@@ -21,7 +21,7 @@ struct Provenance {
   std::string source;       ///< e.g. "virtual patient generator", "segmentation import: 008_gt"
 };
 
-/// Disease classes of virtual patients (SPEC Sec. 8).
+/// Disease classes of virtual patients (docs/virtual-patients.md).
 enum class Pathology : int {
   kNormal = 0,
   kProlapseElongatedChordae = 1,

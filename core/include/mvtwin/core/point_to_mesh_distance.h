@@ -19,7 +19,7 @@ struct DistanceStats {
 DistanceStats distance_stats(std::vector<double> d);
 
 /// Distance in mm from each point (rows of P, n by 3) to the closest point of the surface
-/// (triangles, not vertices): the paper's point-to-mesh error (SPEC Sec. 6).
+/// (triangles, not vertices): the paper's point-to-mesh error (Mansi et al. 2012, Sec. 3.2.3).
 std::vector<double> point_to_mesh_distances(
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& P,
     const TriangleMesh& surface);

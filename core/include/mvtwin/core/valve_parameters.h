@@ -7,7 +7,8 @@
 
 namespace mvtwin {
 
-/// Chordae groups for personalization (SPEC Sec. 3): papillary side x marginal/basal.
+/// Chordae groups for personalization (Mansi et al. 2012, Sec. 2.2): papillary side x
+/// marginal/basal.
 enum class ChordaeGroup : int {
   kAnterolateralMarginal = 0,
   kAnterolateralBasal = 1,

@@ -36,7 +36,7 @@ struct ValveFrame {
 };
 
 /// A valve over time: what detection produces and what the forward model consumes
-/// (Mansi et al. 2012, Sec. 2.1; SPEC Sec. 2).
+/// (Mansi et al. 2012, Sec. 2.1).
 /// A torn stretch of marginal chordae (anatomy that the images show: a flail segment). The
 /// marginal chordae that insert at grid coordinate s in [s_begin, s_end) around the annulus
 /// (from the anterolateral commissure, anterior leaflet for s < 0.5; valve-model.md) are

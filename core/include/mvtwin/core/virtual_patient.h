@@ -26,7 +26,7 @@ struct VirtualPatientOptions {
 /// Generates a virtual (synthetic) patient from a seed: a saddle annulus that contracts and
 /// deepens from end-diastole to the first closed frame, open leaflets on the (u,v) grid,
 /// papillary tips and their motion, frame times and phases, a pathology class and hidden
-/// tissue parameters, all drawn from the published ranges of SPEC Sec. 8 (sources in
+/// tissue parameters, all drawn from the published ranges of docs/virtual-patients.md (sources in
 /// docs/virtual-patients.md). The same seed gives the same patient.
 ///
 /// Frames up to end-diastole are geometric. The leaflets of the closing and closed frames are

@@ -4,8 +4,8 @@
 namespace mvtwin::forward {
 
 /// A chorda tendinea as a tension-only cable with a continuous bilinear stress-strain law
-/// (SPEC Sec. 4: the paper's strain-dependent stiffness times the whole elongation jumps at the
-/// breakpoint; the measured curve it approximates is continuous).
+/// (Mansi et al. 2012, Sec. 2.3: the paper's strain-dependent stiffness times the whole elongation
+/// jumps at the breakpoint; the measured curve it approximates is continuous).
 ///   sigma(eps) = 0                                     eps <= 0   (no force in compression)
 ///              = E_low eps                             0 < eps <= eps_break
 ///              = E_low eps_break + E_high (eps - eps_break)   eps > eps_break

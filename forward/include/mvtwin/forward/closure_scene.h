@@ -24,7 +24,8 @@ struct SceneChorda {
   bool marginal = true;
 };
 
-/// A two-point spring between the mean points of two node sets (a MitraClip, SPEC Sec. 5).
+/// A two-point spring between the mean points of two node sets (a MitraClip, Mansi et al. 2012,
+/// Sec. 2.4).
 struct SceneSpring {
   std::vector<int> a, b;
   double stiffness = 0.0;    ///< N/mm

@@ -16,17 +16,17 @@
 
 namespace mvtwin::forward {
 
-/// A MitraClip (SPEC Sec. 5): a stiff tension-only spring between a site on each leaflet, in
-/// grid coordinates (s in [0, 1) around the annulus from the anterolateral commissure, anterior
-/// for s < 0.5; t from the annulus (0) to the free edge (1)). It holds the two cross-sections
-/// so that their atrial surfaces are the contact distance apart.
+/// A MitraClip (Mansi et al. 2012, Sec. 2.4): a stiff tension-only spring between a site on each
+/// leaflet, in grid coordinates (s in [0, 1) around the annulus from the anterolateral commissure,
+/// anterior for s < 0.5; t from the annulus (0) to the free edge (1)). It holds the two
+/// cross-sections so that their atrial surfaces are the contact distance apart.
 struct ClipOptions {
   double anterior_s = 0.25, anterior_t = 1.0;
   double posterior_s = 0.75, posterior_t = 1.0;
   double stiffness_n_per_mm = 9.80665;  ///< 1000 gf/mm (Mansi et al. 2012)
 };
 
-/// Options of a closure simulation (SPEC Sec. 4). Units: s, t/mm^3, 1/s.
+/// Options of a closure simulation (Mansi et al. 2012, Sec. 2.3). Units: s, t/mm^3, 1/s.
 struct ClosureOptions {
   ModelOptions model;
   double dt = 0.01;                 ///< time step of the simulated (stretched) time, s

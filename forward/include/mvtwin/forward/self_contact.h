@@ -38,8 +38,8 @@ struct SelfContactOptions {
   double stiffness_per_area(double peak_pressure_mpa) const;
 };
 
-/// Leaflet self-contact by vertex-triangle penalties (SPEC Sec. 4: alarm distance 0.6 mm,
-/// contact (minimum) distance 0.3 mm, friction 0.5).
+/// Leaflet self-contact by vertex-triangle penalties (Mansi et al. 2012, Sec. 2.3: alarm distance
+/// 0.6 mm, contact (minimum) distance 0.3 mm, friction 0.5).
 ///
 /// Contact vertices are the corner nodes of the atrial and ventricular surfaces; contact
 /// triangles are the triangles of both surfaces. A pair is ignored when the vertex and the

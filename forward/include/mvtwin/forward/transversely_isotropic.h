@@ -5,8 +5,8 @@
 
 namespace mvtwin::forward {
 
-/// Linear transversely isotropic elasticity: fibre axis 1, isotropic plane 2-3 (SPEC Sec. 4).
-/// Five constants: E1 = E_fibre, E2 = E3 = E_cross, nu12 = nu13, nu23, G12 = G13; and
+/// Linear transversely isotropic elasticity: fibre axis 1, isotropic plane 2-3 (Mansi et al. 2012,
+/// Sec. 2.3). Five constants: E1 = E_fibre, E2 = E3 = E_cross, nu12 = nu13, nu23, G12 = G13; and
 /// G23 = E2 / (2 (1 + nu23)). Moduli in MPa.
 struct TransverselyIsotropic {
   double e_fibre = 0.0;   ///< E1, MPa

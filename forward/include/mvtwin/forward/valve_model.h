@@ -12,14 +12,15 @@
 
 namespace mvtwin::forward {
 
-/// How the finite-element model of a valve is built (SPEC Sec. 3).
+/// How the finite-element model of a valve is built (Mansi et al. 2012, Sec. 2.2).
 struct ModelOptions {
   /// Grid of the model (the sequence is resampled to it; correspondence is kept).
   int ures = 30;
   int vres = 30;
   /// Element layers through the thickness.
   int layers = 1;
-  /// Quadratic tetrahedra do not lock in bending at nu = 0.488; linear ones do (SPEC Sec. 4).
+  /// Quadratic tetrahedra do not lock in bending at nu = 0.488; linear ones do (Mansi et al. 2012,
+  /// Sec. 2.3).
   TetOrder order = TetOrder::kQuadratic;
   /// Quadratic elements follow the curved leaflet (mid-edge nodes on the surface,
   /// isoparametric) instead of faceting it with straight edges.

@@ -8,7 +8,7 @@ namespace mvtwin::forward {
 
 /// How the closing frames of a virtual patient are observed: simulated with its hidden
 /// parameters by a model finer than the calibration model, then sampled like a detector would
-/// see them (SPEC Sec. 8; the calibration model must never be the model that made its
+/// see them (docs/virtual-patients.md; the calibration model must never be the model that made its
 /// observation).
 struct VirtualClosureOptions {
   ClosureOptions simulation = fine_default();
@@ -18,7 +18,7 @@ struct VirtualClosureOptions {
 
   /// A finer model than the calibration default (ures = vres = 30, 1 layer, dt = 0.01 s):
   /// ures = vres = 40, 3 layers through the thickness, dt = 1e-3 s, linear systems solved
-  /// to 1e-3 (SPEC Sec. 8: finer mesh, smaller step, several layers).
+  /// to 1e-3 (docs/virtual-patients.md: finer mesh, smaller step, several layers).
   static ClosureOptions fine_default();
 };
 

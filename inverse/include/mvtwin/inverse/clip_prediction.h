@@ -32,8 +32,9 @@ struct ClosureQuality {
 };
 ClosureQuality closure_quality(const forward::ClosureResult& r);
 
-/// One clip scenario: the closure simulated with the clips (SPEC Sec. 5: clipped on the open
-/// valve with the pressure off, then closed under the patient's boundary motion and pressure).
+/// One clip scenario: the closure simulated with the clips (Mansi et al. 2012, Sec. 2.4: clipped on
+/// the open valve with the pressure off, then closed under the patient's boundary motion and
+/// pressure).
 struct ClipScenario {
   std::vector<ClipSite> sites;
   ClosureQuality quality;
