@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "exit_codes.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
@@ -227,7 +228,7 @@ void register_clip(CLI::App& app, Context& ctx) {
       }
       for (const auto& s : clipped)
         if (s.quality.converged) return 0;
-      return 4;
+      return static_cast<int>(kExitFailed);
     };
   });
 }

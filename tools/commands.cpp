@@ -1,4 +1,5 @@
 #include "commands.h"
+#include "exit_codes.h"
 #include "output_files.h"
 #include "progress.h"
 
@@ -351,7 +352,7 @@ void register_commands(CLI::App& app, Context& ctx) {
         std::cout << "cohort of " << *n << " virtual patients in " << *out << " (made " << made
                   << ", kept " << kept << ", failed " << failed << "); manifest " << mpath.string()
                   << "\n";
-        return failed ? 1 : 0;
+        return failed ? int{kExitFailed} : int{kExitOk};
       };
     });
   }
@@ -639,7 +640,7 @@ void register_commands(CLI::App& app, Context& ctx) {
           std::cout << "wrote " << files.size() << " files to " << *dir
                     << " (open simulation.pvd and leaflets_end.vtu)\n";
         }
-        return r.summary.converged() ? 0 : 4;
+        return r.summary.converged() ? kExitOk : kExitFailed;
       };
     });
   }

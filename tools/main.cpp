@@ -1,5 +1,5 @@
-// mvtwin: the command line, thin over the libraries. Errors go to stderr with exit code 1
-// (bad input) or 2 (bad usage).
+// mvtwin: the command line, thin over the libraries. Errors go to stderr; the exit status is one
+// of tools/exit_codes.h (README.md, "Exit status").
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
+#include "exit_codes.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/version.h"
 
@@ -30,15 +31,16 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the help, the version or the problem; --help and --version are not errors.
+    return app.exit(e) == 0 ? mvtwin::tools::kExitOk : mvtwin::tools::kExitUsage;
   }
   try {
     return ctx.run();
   } catch (const mvtwin::Error& e) {
     std::cerr << "mvtwin: error: " << e.what() << "\n";
-    return 1;
+    return mvtwin::tools::kExitInput;
   } catch (const std::exception& e) {
     std::cerr << "mvtwin: internal error: " << e.what() << "\n";
-    return 3;
+    return mvtwin::tools::kExitInternal;
   }
 }

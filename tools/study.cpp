@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.h"
+#include "exit_codes.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/studies/cohort_study.h"
@@ -184,7 +185,7 @@ void register_cohort(CLI::App* study, Context& ctx) {
       }
       std::cout << "wrote " << (o.out / "study.json").string()
                 << ", study.h5, report.md, report.html (" << r.wall_s << " s)\n";
-      return ov["failed"].get<int>() > 0 ? 4 : 0;
+      return ov["failed"].get<int>() > 0 ? int{kExitFailed} : int{kExitOk};
     };
   });
 }
@@ -259,7 +260,7 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
       }
       std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; wrote "
                 << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
-      return failed ? 4 : 0;
+      return failed ? int{kExitFailed} : int{kExitOk};
     };
   });
 }

@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "exit_codes.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/studies/clip_study.h"
 #include "mvtwin/studies/report.h"
@@ -115,7 +116,7 @@ void register_study_clip(CLI::App* study, Context& ctx) {
       for (const auto& [k, v] : r.summary["by_pathology"].items()) row(k, v);
       row("all", r.summary["overall"]);
       std::cout << "wrote " << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
-      return r.summary["overall"]["failed"].get<int>() > 0 ? 4 : 0;
+      return r.summary["overall"]["failed"].get<int>() > 0 ? int{kExitFailed} : int{kExitOk};
     };
   });
 }

@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "exit_codes.h"
 #include "mvtwin/studies/convergence_study.h"
 #include "mvtwin/studies/report.h"
 #include "study_commands.h"
@@ -97,7 +98,7 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
       std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; "
                 << r.simulations << " simulations; wrote " << (o.out / "report.md").string() << " ("
                 << r.wall_s << " s)\n";
-      return failed ? 4 : 0;
+      return failed ? int{kExitFailed} : int{kExitOk};
     };
   });
 }

@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "exit_codes.h"
 #include "mvtwin/studies/detection_study.h"
 #include "mvtwin/studies/report.h"
 #include "study_commands.h"
@@ -134,7 +135,7 @@ void register_study_detection(CLI::App* study, Context& ctx) {
       for (const auto& run : r.runs) failed += !run.ok;
       std::cout << "wrote " << (o.out / "report.md").string() << ", study.json, study.h5 ("
                 << r.wall_s << " s)\n";
-      return failed > 0 ? 4 : 0;
+      return failed > 0 ? int{kExitFailed} : int{kExitOk};
     };
   });
 }

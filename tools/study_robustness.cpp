@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "exit_codes.h"
 #include "mvtwin/studies/robustness_study.h"
 #include "study_commands.h"
 
@@ -64,7 +65,7 @@ void register_study_robustness(CLI::App* study, Context& ctx) {
       std::printf("%zu cases: %d converged, %d clean failures, %d crashes, %d non-finite outputs\n",
                   r.cases.size(), r.converged, r.clean_failures, r.crashes, r.nonfinite);
       std::cout << "wrote " << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
-      return r.crashes + r.nonfinite > 0 ? 5 : 0;
+      return r.crashes + r.nonfinite > 0 ? int{kExitInternal} : int{kExitOk};
     };
   });
 }
