@@ -40,12 +40,6 @@ void write_json(const std::string& path, const json& j) {
   std::cout << "wrote " << path << "\n";
 }
 
-json provenance(const Context& ctx) {
-  return {{"mvtwin_version", kVersion},
-          {"command", ctx.command_line},
-          {"created_utc", utc_now_iso8601()}};
-}
-
 struct Run {
   forward::ClosureResult result;
   double wall_s = 0;

@@ -166,16 +166,12 @@ void register_bench_import(CLI::App& bench, Context& ctx) {
               frames > 0 ? secs / frames : 0.0, failed);
         }
       }
-      nlohmann::json j = {{"benchmark", "import"},
-                          {"synthetic", "virtual patients: SYNTHETIC"},
-                          {"mvtwin_version", kVersion},
-                          {"command", ctx.command_line},
-                          {"created_utc", utc_now_iso8601()},
-                          {"cohort_seed", *seed},
-                          {"boundary_noise", *noise},
-                          {"closure_model", *closure_sets},
-                          {"rows", rows},
-                          {"per_patient", per_patient}};
+      nlohmann::json j = {
+          {"benchmark", "import"},          {"synthetic", "virtual patients: SYNTHETIC"},
+          {"cohort_seed", *seed},           {"boundary_noise", *noise},
+          {"closure_model", *closure_sets}, {"rows", rows},
+          {"per_patient", per_patient}};
+      j.update(provenance(ctx));
       if (!json_path->empty()) write_json_file(*json_path, j);
       return 0;
     };

@@ -179,12 +179,9 @@ void register_clip(CLI::App& app, Context& ctx) {
              {"parameters_from", source},
              {"options", forward::describe_options(o)},
              {"before", quality_json(before.quality)},
-             {"provenance",
-              {{"mvtwin_version", kVersion},
-               {"command", ctx.command_line},
-               {"created_utc", utc_now_iso8601()},
-               {"seed", p.provenance.seed},
-               {"source", assumed_note(p)}}}};
+             {"provenance", provenance(ctx)}};
+      j["provenance"]["seed"] = p.provenance.seed;
+      j["provenance"]["source"] = assumed_note(p);
       std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
       if (*suggest) {
         inverse::rank_by_residual_orifice(&clipped);

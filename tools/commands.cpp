@@ -195,6 +195,12 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
 
 void refuse_overwrite_path(const fs::path& p, bool force) { refuse_overwrite(p, force); }
 
+nlohmann::json provenance(const Context& ctx) {
+  return {{"mvtwin_version", kVersion},
+          {"command", ctx.command_line},
+          {"created_utc", utc_now_iso8601()}};
+}
+
 Patient read_patient_for_run(const fs::path& path, bool use_detected) {
   Patient p = read_patient(path, false);
   if (use_detected) {
@@ -291,10 +297,9 @@ void register_commands(CLI::App& app, Context& ctx) {
         nlohmann::json manifest;
         manifest["format"] = "mvtwin-cohort";
         manifest["synthetic"] = true;
-        manifest["mvtwin_version"] = kVersion;
+        manifest.update(provenance(ctx));
         manifest["seed"] = *seed;
         manifest["n"] = *n;
-        manifest["command"] = ctx.command_line;
         manifest["patients"] = nlohmann::json::array();
         int made = 0, kept = 0, failed = 0;
         for (int i = 0; i < *n; ++i) {

@@ -4,6 +4,7 @@
 #include <string>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include "mvtwin/core/patient.h"
 
@@ -19,6 +20,10 @@ struct Context {
   std::string command_line;
   std::function<int()> run;
 };
+
+/// What every JSON result of a command records about its making: mvtwin_version, command,
+/// created_utc (add the seed, the source, ... where there is one).
+nlohmann::json provenance(const Context& ctx);
 
 void register_commands(CLI::App& app, Context& ctx);
 /// mvtwin bench closure | solvers (tools/bench.cpp) and the bench commands below.

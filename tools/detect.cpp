@@ -233,10 +233,7 @@ void register_detect(CLI::App& app, Context& ctx) {
                               {"model", *model},
                               {"frames", frames.size()},
                               {"s_per_volume", total_s / static_cast<double>(frames.size())},
-                              {"provenance",
-                               {{"mvtwin_version", kVersion},
-                                {"command", ctx.command_line},
-                                {"created_utc", utc_now_iso8601()}}}};
+                              {"provenance", provenance(ctx)}};
         if (p.images.size() == p.sequence.frames.size()) {
           nlohmann::json run{{"frames", studies::detection_errors(p, frames, info)}};
           const nlohmann::json s = studies::summarize_detections({&run});

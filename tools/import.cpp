@@ -273,10 +273,7 @@ void register_import(CLI::App& app, Context& ctx) {
       detection::PatientImport r = detection::import_patient(std::move(lf), lm, o);
       r.patient.provenance.command = ctx.command_line;
       const ValveSequence& seq = r.patient.sequence;
-      nlohmann::json report = {{"mvtwin_version", kVersion},
-                               {"command", ctx.command_line},
-                               {"created_utc", utc_now_iso8601()},
-                               {"patient_id", r.patient.id},
+      nlohmann::json report = {{"patient_id", r.patient.id},
                                {"synthetic", false},
                                {"labels", o.fit.labels.describe()},
                                {"end_diastole", seq.end_diastole},
@@ -284,6 +281,7 @@ void register_import(CLI::App& app, Context& ctx) {
                                {"assumed", r.assumed},
                                {"notes", r.notes},
                                {"frames", nlohmann::json::array()}};
+      report.update(provenance(ctx));
       std::ostringstream rep;
       for (size_t f = 0; f < r.fits.size(); ++f) {
         const detection::FrameFit& fit = r.fits[f];
