@@ -206,7 +206,10 @@ Patient read_patient_for_run(const fs::path& path, bool use_detected) {
   if (use_detected) {
     if (!p.detected)
       throw Error(path.string() + " has no detected sequence (run mvtwin detect first)");
+    // Detection finds the leaflets, not torn chordae: those stay the patient's known anatomy.
+    const std::vector<ChordaeRupture> ruptures = p.sequence.ruptured_chordae;
     p.sequence = *p.detected;
+    if (p.sequence.ruptured_chordae.empty()) p.sequence.ruptured_chordae = ruptures;
     p.provenance.source.append("; sequence detected from images (")
         .append(p.detected_by)
         .append(")");

@@ -394,7 +394,6 @@ Patient read_patient(const std::filesystem::path& path, bool with_images) {
         root.fail("ground_truth/ruptured_marginal_chordae", "index out of 0..27");
       const ChordaeRupture r = marginal_chorda_rupture(k, 28);
       p.sequence.ruptured_chordae.push_back(r);
-      if (p.detected) p.detected->ruptured_chordae.push_back(r);
     }
   }
   return p;

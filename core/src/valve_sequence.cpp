@@ -38,7 +38,7 @@ void ValveSequence::validate(const char* what) const {
   if (ures < 8 || ures % 2 != 0) fail("ures must be even and >= 8, got " + std::to_string(ures));
   if (vres < 3) fail("vres must be >= 3, got " + std::to_string(vres));
   for (const ChordaeRupture& r : ruptured_chordae) {
-    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0))
+    if (!r.is_valid())
       fail("a chordae rupture must have 0 <= s_begin < s_end <= 1, got [" +
            std::to_string(r.s_begin) + ", " + std::to_string(r.s_end) + ")");
   }

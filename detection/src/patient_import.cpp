@@ -114,7 +114,7 @@ bool PatientImportOptions::is_valid(std::string* error) const {
     return false;
   }
   for (const ChordaeRupture& r : ruptured_chordae) {
-    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0)) {
+    if (!r.is_valid()) {
       *error = "a chordae rupture must have 0 <= s_begin < s_end <= 1";
       return false;
     }

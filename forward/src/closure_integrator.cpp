@@ -411,14 +411,7 @@ double ClosureIntegrator::clip_gap(int c, const Eigen::VectorXd& x) const {
 
 void ClosureIntegrator::finish(ClosureResult* result) const {
   ClosureSummary& sum = result->summary;
-  const Outcome outcome = sum.outcome;
-  const std::string reason = sum.reason;
-  const int steps = sum.steps, halvings = sum.halvings;
   sum = counters_;
-  sum.outcome = outcome;
-  sum.reason = reason;
-  sum.steps = steps;
-  sum.halvings = halvings;
   result->rest_mesh = scene_.model.linear;
   strain_and_stress(result->positions, &result->element_strain, &result->element_stress_mpa);
   const Interpenetration ip = find_interpenetration(scene_.model, result->positions);

@@ -134,7 +134,7 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
         "frame");
   }
   for (const ChordaeRupture& r : seq.ruptured_chordae) {
-    if (!(r.s_begin >= 0.0 && r.s_begin < r.s_end && r.s_end <= 1.0))
+    if (!r.is_valid())
       throw Error("closure simulation: a chordae rupture must have 0 <= s_begin < s_end <= 1");
   }
   ClosureScene sc;

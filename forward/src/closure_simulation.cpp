@@ -76,12 +76,17 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   const ClosureScene scene = make_closure_scene(seq, params, opt);  // validates the options
   ClosureIntegrator integrator(scene, opt);
   ClosureResult result;
-  ClosureSummary& sum = result.summary;
   ValveState state = integrator.initial_state();
   const double T = scene.duration();
-  auto finish = [&] {
+  int steps = 0, halvings_total = 0;
+  auto finish = [&](Outcome outcome, std::string reason) {
     result.positions = state.x;
     integrator.finish(&result);
+    ClosureSummary& sum = result.summary;
+    sum.outcome = outcome;
+    sum.reason = std::move(reason);
+    sum.steps = steps;
+    sum.halvings = halvings_total;
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
@@ -96,21 +101,19 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     StepOutcome o;
     while (!(o = integrator.step(tau, h, &state)).ok()) {
       if (halvings >= opt.max_step_halvings) {
-        sum.outcome = o.outcome;
-        sum.reason = o.message + " at t = " + std::to_string(tau) + " s" +
-                     (tau < 0 ? " (clip phase)" : "") + " (after " + std::to_string(halvings) +
-                     " step halvings)";
         result.samples.push_back(integrator.sample(std::max(tau, 0.0), state));
-        finish();
+        finish(o.outcome, o.message + " at t = " + std::to_string(tau) + " s" +
+                              (tau < 0 ? " (clip phase)" : "") + " (after " +
+                              std::to_string(halvings) + " step halvings)");
         return result;
       }
       ++halvings;
-      ++sum.halvings;
+      ++halvings_total;
       h *= 0.5;
     }
     const bool clip_phase_ends = tau < 0.0 && tau + h >= -1e-12;
     tau += h;
-    ++sum.steps;
+    ++steps;
     if (clip_phase_ends) {
       tau = 0.0;
       result.samples.push_back(integrator.sample(0.0, state));
@@ -127,8 +130,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   result.samples.push_back(integrator.sample(tau, state));
   for (int c = 0; c < integrator.num_clips(); ++c)
     result.clip_gap_end_mm.push_back(integrator.clip_gap(c, state.x));
-  sum.outcome = Outcome::kConverged;
-  finish();
+  finish(Outcome::kConverged, "");
   return result;
 }
 

@@ -326,13 +326,13 @@ TEST(ClosureScene, RupturedStretchLeavesOutTheMarginalChordaeInsertingInIt) {
     ClosureOptions o = small_options();
     o.model.ures = 16;  // room for 4 x ures chordae
     o.model.marginal_chordae = n;
-    const ClosureScene intact = make_closure_scene(p.sequence, p.truth->parameters, o);
+    const ClosureScene torn = make_closure_scene(p.sequence, p.truth->parameters, o);
     Patient whole = p;
     whole.sequence.ruptured_chordae.clear();
     const ClosureScene all = make_closure_scene(whole.sequence, p.truth->parameters, o);
     int marginal_all = 0, marginal_torn = 0, basal_all = 0, basal_torn = 0;
     for (const SceneChorda& c : all.chordae) (c.marginal ? marginal_all : basal_all)++;
-    for (const SceneChorda& c : intact.chordae) (c.marginal ? marginal_torn : basal_torn)++;
+    for (const SceneChorda& c : torn.chordae) (c.marginal ? marginal_torn : basal_torn)++;
     EXPECT_EQ(marginal_all, n);
     EXPECT_EQ(marginal_all - marginal_torn, 2 * n / 28) << n << " marginal chordae";
     EXPECT_EQ(basal_torn, basal_all);

@@ -44,6 +44,8 @@ struct ValveFrame {
 struct ChordaeRupture {
   double s_begin = 0.0, s_end = 0.0;
   bool contains(double s) const { return s >= s_begin && s < s_end; }
+  /// 0 <= s_begin < s_end <= 1.
+  bool is_valid() const { return s_begin >= 0.0 && s_begin < s_end && s_end <= 1.0; }
 };
 
 /// The stretch around marginal chorda k of n evenly spaced ones (insertion site s = k / n):

@@ -106,8 +106,9 @@ class ClosureIntegrator {
   /// time per part, contact and linear-solver statistics. Interpenetration is measured by
   /// finish().
   const ClosureSummary& counters() const { return counters_; }
-  /// Fills `result`'s summary with the counters, its end positions' strain, stress and
-  /// interpenetration, and the rest mesh.
+  /// Replaces `result`'s summary by the counters with its end positions' interpenetration (the
+  /// driver sets the outcome, steps and halvings afterwards), and fills the rest mesh and the
+  /// end strain and stress.
   void finish(ClosureResult* result) const;
 
  private:
