@@ -316,6 +316,16 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
   return {};
 }
 
+double ClosureIntegrator::local_error(const ValveState& before, const ValveState& after,
+                                      double h) const {
+  double dv = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    if (fixed_[3 * i]) continue;
+    dv = std::max(dv, (after.v.segment<3>(3 * i) - before.v.segment<3>(3 * i)).norm());
+  }
+  return 0.5 * h * dv;
+}
+
 // The linearization point was checked when it was linearized; the step's end must be valid
 // too, or the next step would start from an inverted element that no smaller step can mend.
 StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) {

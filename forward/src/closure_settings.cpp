@@ -73,6 +73,8 @@ const std::map<std::string, Field>& fields() {
               }};
     };
     dbl("dt", [](ClosureOptions& o) -> double& { return o.dt; });
+    dbl("step_error_mm", [](ClosureOptions& o) -> double& { return o.step_error_mm; });
+    dbl("max_dt", [](ClosureOptions& o) -> double& { return o.max_dt; });
     dbl("stretch", [](ClosureOptions& o) -> double& { return o.stretch; });
     dbl("density", [](ClosureOptions& o) -> double& { return o.density; });
     dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });

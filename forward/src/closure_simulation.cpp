@@ -8,6 +8,7 @@
 #include "mvtwin/forward/closure_integrator.h"
 #include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/step_size_control.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -26,6 +27,10 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return false;
   };
   if (!(dt > 0 && dt <= 0.5)) return bad("dt must be in (0, 0.5] s");
+  if (!(step_error_mm >= 0 && step_error_mm <= 10))
+    return bad("step_error_mm must be in [0, 10] mm (0: fixed steps of dt)");
+  if (!(max_dt > 0 && max_dt <= 0.5))
+    return bad("max_dt must be in (0, 0.5] s (steps never exceed the larger of dt and max_dt)");
   if (!(stretch > 0 && stretch <= 1000)) return bad("stretch must be in (0, 1000]");
   if (!(density > 0)) return bad("density must be positive");
   if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0))
@@ -56,10 +61,10 @@ std::string ClosureSummary::brief_report() const {
   std::ostringstream os;
   os << (converged() ? "closure simulated"
                      : std::string("closure FAILED (") + outcome_name(outcome) + "): " + reason)
-     << "; " << steps << " steps (" << halvings << " halvings, " << crossings
-     << " crossings caught, " << newton_iterations << " Newton iterations), " << dofs << " dofs, "
-     << elements << " elements; " << wall_s << " s (assembly " << assembly_s << ", solve "
-     << solve_s << ", contact " << contact_s << ", other " << other_s
+     << "; " << steps << " steps (" << halvings << " halvings, " << rejected << " redone smaller, "
+     << crossings << " crossings caught, " << newton_iterations << " Newton iterations), " << dofs
+     << " dofs, " << elements << " elements; " << wall_s << " s (assembly " << assembly_s
+     << ", solve " << solve_s << ", contact " << contact_s << ", other " << other_s
      << "); linear solver: " << factorizations << " factorizations, " << analyses << " analyses, "
      << pcg_iterations << " PCG iterations, " << unconverged_solves
      << " unconverged; contact: " << contacts << " pairs at the end (max " << max_contacts
@@ -78,7 +83,7 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   ClosureResult result;
   ValveState state = integrator.initial_state();
   const double T = scene.duration();
-  int steps = 0, halvings_total = 0;
+  int steps = 0, halvings_total = 0, rejected = 0;
   auto finish = [&](Outcome outcome, std::string reason) {
     result.positions = state.x;
     integrator.finish(&result);
@@ -87,18 +92,28 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.reason = std::move(reason);
     sum.steps = steps;
     sum.halvings = halvings_total;
+    sum.rejected = rejected;
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
 
   double tau = -integrator.clip_phase_s();
   if (tau >= 0.0) result.samples.push_back(integrator.sample(0.0, state));
+  // Fixed steps of dt (the paper's scheme), or error-controlled steps from dt up to max_dt.
+  const StepSizeControl control(opt.dt, opt.max_dt, opt.step_error_mm);
+  // Recorded states fall every record_every x dt of the closure, whatever the step sizes.
+  const double record_interval = opt.record_every > 0 ? opt.record_every * opt.dt : 0.0;
+  double next_record = record_interval;
+  double h_next = opt.dt;
   int step_index = 0;
   while (tau < T - 1e-12) {
     // Steps land on t = 0, where the clip phase ends and the closure is first recorded.
-    double h = std::min(opt.dt, tau < 0.0 ? -tau : T - tau);
+    double h = tau < 0.0 ? std::min(opt.dt, -tau) : std::min(h_next, T - tau);
+    if (control.adaptive() && tau >= 0.0 && record_interval > 0.0 && next_record < T - 1e-12)
+      h = std::min(h, next_record - tau);
     int halvings = 0;
     StepOutcome o;
+    const ValveState before = control.adaptive() ? state : ValveState{};
     while (!(o = integrator.step(tau, h, &state)).ok()) {
       if (halvings >= opt.max_step_halvings) {
         result.samples.push_back(integrator.sample(std::max(tau, 0.0), state));
@@ -110,6 +125,16 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       ++halvings;
       ++halvings_total;
       h *= 0.5;
+    }
+    if (control.adaptive() && tau >= 0.0) {
+      const double error = integrator.local_error(before, state, h);
+      if (!control.accept(h, error)) {
+        state = before;  // redo the step smaller
+        ++rejected;
+        h_next = control.next(h, error);
+        continue;
+      }
+      h_next = halvings > 0 ? std::max(h, opt.dt) : control.next(h, error);
     }
     const bool clip_phase_ends = tau < 0.0 && tau + h >= -1e-12;
     tau += h;
@@ -124,8 +149,14 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     if (tau < 0.0) continue;
     ++step_index;
     if (opt.progress) opt.progress(tau, T);
-    if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12)
+    if (control.adaptive()) {
+      if (record_interval > 0.0 && tau >= next_record - 1e-9 && tau < T - 1e-12) {
+        result.samples.push_back(integrator.sample(tau, state));
+        while (next_record <= tau + 1e-9) next_record += record_interval;
+      }
+    } else if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12) {
       result.samples.push_back(integrator.sample(tau, state));
+    }
   }
   result.samples.push_back(integrator.sample(tau, state));
   for (int c = 0; c < integrator.num_clips(); ++c)
@@ -145,6 +176,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
   rec.outcome = outcome_name(s.outcome);
   rec.summary = {{"steps", s.steps},
                  {"halvings", s.halvings},
+                 {"rejected_steps", s.rejected},
                  {"crossings", s.crossings},
                  {"newton_iterations", s.newton_iterations},
                  {"dofs", s.dofs},

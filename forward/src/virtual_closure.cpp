@@ -17,6 +17,7 @@ ClosureOptions VirtualClosureOptions::fine_default() {
   o.model.vres = 40;
   o.model.layers = 3;
   o.dt = 1e-3;
+  o.step_error_mm = 0.0;          // the truth at fixed fine steps
   o.solver.pcg_tolerance = 1e-3;  // a tenth of the calibration model's linear-solve tolerance
   return o;
 }

@@ -195,6 +195,9 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
   const Patient patient = detail::study_patient(o.seed, o.patient, o.patient_file, &parameters);
   base.progress = nullptr;
   base.record_every = 0;  // the end state is all the study compares
+  // Fixed steps: the dt series measures the scheme at each step size (error-controlled steps
+  // would make dt only the smallest step).
+  base.step_error_mm = 0.0;
 
   // The distinct models: the base model is in every series and is simulated once.
   std::vector<ConvergenceRun> runs = convergence_runs(o);

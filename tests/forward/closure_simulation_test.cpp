@@ -259,6 +259,7 @@ TEST(ClosureSimulation, DefaultPatientClosesWithLargeStepsNearThePapersStep) {
 #endif
   const Patient p = make_virtual_patient(1);
   ClosureOptions o = coarse_default_patient_options();
+  o.step_error_mm = 0.0;  // fixed steps: the paper's dt against five times it
   const ClosureResult paper = simulate_closure(p.sequence, p.truth->parameters, o);
   ASSERT_TRUE(paper.summary.converged()) << paper.summary.reason;
   o.dt = 0.05;
@@ -275,6 +276,42 @@ TEST(ClosureSimulation, DefaultPatientClosesWithLargeStepsNearThePapersStep) {
             << ab.mean << " / " << ba.mean << " mm, max " << ab.max << " / " << ba.max << " mm\n";
   EXPECT_LT(std::max(ab.mean, ba.mean), 0.8);
   EXPECT_LT(std::max(ab.max, ba.max), 4.0);
+}
+
+// Error-controlled steps (the default) against fixed steps of the paper's dt on the default
+// patient: far fewer steps, the closed surfaces close together, and recorded states still on
+// the record_every x dt grid.
+TEST(ClosureSimulation, ErrorControlledStepsEndNearThePapersFixedSteps) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "a full closure takes minutes under AddressSanitizer; run in the -Werror build";
+#endif
+  const Patient p = make_virtual_patient(1);
+  ClosureOptions fixed = coarse_default_patient_options();
+  ASSERT_GT(fixed.step_error_mm, 0.0) << "error-controlled steps are the default";
+  fixed.step_error_mm = 0.0;
+  ClosureOptions adaptive = coarse_default_patient_options();
+  adaptive.record_every = 5;
+  const ClosureResult a = simulate_closure(p.sequence, p.truth->parameters, fixed);
+  const ClosureResult b = simulate_closure(p.sequence, p.truth->parameters, adaptive);
+  ASSERT_TRUE(a.summary.converged()) << a.summary.reason;
+  ASSERT_TRUE(b.summary.converged()) << b.summary.reason;
+  EXPECT_LT(b.summary.steps, 0.6 * a.summary.steps);
+  for (size_t k = 0; k + 1 < b.samples.size(); ++k) {
+    const double t = b.samples[k].time_s / (5 * adaptive.dt);
+    EXPECT_NEAR(t, std::round(t), 1e-6) << "sample " << k << " at " << b.samples[k].time_s;
+  }
+  EXPECT_NEAR(b.samples.back().time_s, a.samples.back().time_s, 1e-9);
+  const LeafletGrid& x = a.samples.back().la_surface;
+  const LeafletGrid& y = b.samples.back().la_surface;
+  const DistanceStats xy = point_to_mesh_distance(x.points(), y.triangulate());
+  const DistanceStats yx = point_to_mesh_distance(y.points(), x.triangulate());
+  std::cout << "fixed: " << a.summary.steps
+            << " steps; error-controlled: " << b.summary.brief_report()
+            << "\nclosed surfaces apart: mean " << xy.mean << " / " << yx.mean << " mm, max "
+            << xy.max << " / " << yx.max << " mm\n";
+  EXPECT_LT(std::max(xy.mean, yx.mean), 0.15);
+  EXPECT_LT(std::max(xy.max, yx.max), 1.0);
+  EXPECT_EQ(b.summary.interpenetrating_nodes, 0);
 }
 
 // A clip (Mansi et al. 2012, Sec. 2.4) between the middles of the two free edges: during the clip

@@ -67,6 +67,9 @@ class ClosureIntegrator {
   /// linearizations, then the checks of the trial step (finite, no inverted element, no node
   /// through a leaflet surface). On failure `state` is left unchanged.
   StepOutcome step(double tau, double h, ValveState* state);
+  /// The local error estimate of a step from `before` to `after` of size h: h/2 times the
+  /// largest change of a free node's velocity, mm (StepSizeControl).
+  double local_error(const ValveState& before, const ValveState& after, double h) const;
 
   // The step system, for tests and diagnostics.
 
