@@ -31,9 +31,9 @@ struct StepSolverOptions {
   /// terms their factorization leaves out).
   double pcg_tolerance = 0.1;
   int pcg_max_iterations = 25;  ///< beyond this, refactorize and solve again
-  /// A solve this long makes the next one refactorize. One factorization of the paper's grid
-  /// costs about 14 CG iterations (docs/forward-status.md): 5 iterations, not 3.
-  int refactor_iterations = 5;
+  /// A solve this long makes the next one refactorize (one factorization of the paper's grid
+  /// costs about 14 CG iterations; 5 was measured faster, not yet made the default).
+  int refactor_iterations = 3;
   /// Supernodal kinds: apply the factorization as the preconditioner from a single-precision
   /// copy (half the memory traffic of the memory-bound triangular solves; CG on the exact
   /// double-precision operator still reaches any tolerance).
