@@ -105,7 +105,6 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   const double record_interval = opt.record_every > 0 ? opt.record_every * opt.dt : 0.0;
   double next_record = record_interval;
   double h_next = opt.dt;
-  int step_index = 0;
   while (tau < T - 1e-12) {
     // Steps land on t = 0, where the clip phase ends and the closure is first recorded.
     double h = tau < 0.0 ? std::min(opt.dt, -tau) : std::min(h_next, T - tau);
@@ -147,15 +146,10 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       continue;
     }
     if (tau < 0.0) continue;
-    ++step_index;
     if (opt.progress) opt.progress(tau, T);
-    if (control.adaptive()) {
-      if (record_interval > 0.0 && tau >= next_record - 1e-9 && tau < T - 1e-12) {
-        result.samples.push_back(integrator.sample(tau, state));
-        while (next_record <= tau + 1e-9) next_record += record_interval;
-      }
-    } else if (opt.record_every > 0 && step_index % opt.record_every == 0 && tau < T - 1e-12) {
+    if (record_interval > 0.0 && tau >= next_record - 1e-9 && tau < T - 1e-12) {
       result.samples.push_back(integrator.sample(tau, state));
+      while (next_record <= tau + 1e-9) next_record += record_interval;
     }
   }
   result.samples.push_back(integrator.sample(tau, state));

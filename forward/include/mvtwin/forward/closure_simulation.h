@@ -69,7 +69,8 @@ struct ClosureOptions {
   /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
   /// nodes start at rest whatever is given.
   Eigen::VectorXd initial_velocity;
-  /// Record the atrial surface every n steps (0: only the end).
+  /// Record the atrial surface every n x dt of simulated time, i.e. every n fixed steps (0: only
+  /// the end; after a halved step, at the first step on or past each of those times).
   int record_every = 0;
   /// A failed step (inverted element, non-finite value, solver failure) is retried with half
   /// the step at most this many times before the simulation stops with a failure status.

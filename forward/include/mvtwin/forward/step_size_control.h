@@ -1,5 +1,6 @@
 #pragma once
 // Error-controlled step sizes for the closure's implicit Euler steps.
+#include <algorithm>
 #include <cmath>
 
 namespace mvtwin::forward {
@@ -34,10 +35,11 @@ class StepSizeControl {
   /// The size of the next step (or of the retry, after a rejected step) after a step of h.
   double next(double h, double error_mm) const {
     if (!adaptive()) return min_h_;
-    double factor = 2.0;
-    if (error_mm > 0.0 && error_mm == error_mm) factor = 0.9 * std::sqrt(tol_ / error_mm);
-    if (!(error_mm == error_mm)) factor = 0.25;  // NaN estimate: back off
-    factor = factor < 0.25 ? 0.25 : (factor > 2.0 ? 2.0 : factor);
+    double factor = 2.0;  // no error: doubled
+    if (std::isnan(error_mm))
+      factor = 0.25;  // no estimate: back off
+    else if (error_mm > 0.0)
+      factor = std::clamp(0.9 * std::sqrt(tol_ / error_mm), 0.25, 2.0);
     // Rounded down to min_h times a power of two: the step matrix, and so the linear
     // solver's reused factorization, changes only when the level does.
     const double want = h * factor;
