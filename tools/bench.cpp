@@ -16,7 +16,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "commands.h"
+#include "bench.h"
+#include "bench_import.h"
+#include "exit_codes.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -71,12 +73,6 @@ json summary_json(const Run& r) {
           {"orifice_end_mm2", r.result.samples.back().orifice_area_mm2}};
 }
 
-/// The converged reference of bench closure: a finer mesh, fixed steps 100x smaller than the
-/// paper's, linear systems solved to 1e-4 (the error against the reference does not move
-/// between 0.1 and 1e-3 at the paper's step: docs/forward-status.md).
-const std::vector<std::string> kReferenceSettings = {"ures=40", "vres=40", "dt=0.0001",
-                                                     "step_error_mm=0", "pcg_tolerance=1e-4"};
-
 std::string join(const std::vector<std::string>& v) {
   std::string out;
   for (const auto& s : v) out += (out.empty() ? "" : " ") + s;
@@ -95,7 +91,7 @@ forward::ClosureOptions with_settings(forward::ClosureOptions o,
 /// The reference run's end surface: read from `file` when it holds a run of the same patient
 /// with the same options, else simulated (and written to `file` if one is named).
 LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& ro,
-                              const std::string& file, const Context& ctx) {
+                              const std::string& file, const std::string& command_line) {
   // What decides the result: every option but how often states are recorded and how the
   // linear solver spends its work to reach its tolerance. A file made before error-controlled
   // steps had fixed ones (step_error_mm = 0, which makes max_dt irrelevant).
@@ -135,7 +131,7 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
     rec.patient_id = p.id;
     rec.synthetic = true;
     rec.provenance.version = kVersion;
-    rec.provenance.command = ctx.command_line;
+    rec.provenance.command = command_line;
     rec.provenance.created_utc = utc_now_iso8601();
     rec.provenance.seed = p.provenance.seed;
     write_simulation_file(file, rec);
@@ -145,6 +141,100 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
 }
 
 }  // namespace
+
+int run_bench_closure(const BenchClosureArgs& a) {
+  if (a.repeat < 1) throw Error("bench closure: --repeat must be >= 1");
+  const Patient p = make_virtual_patient(a.seed);
+  const forward::ClosureOptions o = with_settings({}, a.sets);
+  const forward::ClosureOptions ro = with_settings({}, a.ref_sets);
+  std::vector<double> walls;
+  Run best;
+  for (int k = 0; k < a.repeat; ++k) {
+    std::cout << "timed run " << k + 1 << "/" << a.repeat << " ..." << std::endl;
+    Run r = run(p, o);
+    walls.push_back(r.wall_s);
+    if (k == 0 || r.wall_s < best.wall_s) best = std::move(r);
+  }
+  std::cout << best.result.summary.brief_report() << "\n";
+  const LeafletGrid ref_surface = reference_surface(p, ro, a.ref_file, a.command_line);
+  const DistanceStats e =
+      symmetric_surface_distance(best.result.samples.back().la_surface.triangulate(),
+                                 ref_surface.triangulate())
+          .symmetric;
+  std::vector<double> sorted = walls;
+  std::sort(sorted.begin(), sorted.end());
+  json j = summary_json(best);
+  j["wall_s"] = sorted.front();
+  j["wall_s_median"] = sorted[sorted.size() / 2];
+  j["wall_s_all"] = walls;
+  j["error_mean_mm"] = e.mean;
+  j["error_sd_mm"] = e.sd;
+  j["error_p95_mm"] = e.p95;
+  j["error_max_mm"] = e.max;
+  j["reference_settings"] = a.ref_sets;
+  j["settings"] = forward::describe_options(o);
+  j["patient_seed"] = a.seed;
+  j["synthetic"] = true;
+  j["provenance"] = provenance(a.command_line);
+  const auto& s = best.result.summary;
+  std::cout << "wall_s " << sorted.front() << " (median " << sorted[sorted.size() / 2] << " of "
+            << walls.size() << ")  steps " << s.steps << "  dofs " << s.dofs << "  tets "
+            << s.elements << "  assembly_s " << s.assembly_s << "  solve_s " << s.solve_s
+            << "  contact_s " << s.contact_s << "\nerror_mean_mm " << e.mean << "  error_max_mm "
+            << e.max << " (against the reference)\n";
+  write_json(a.json_path, j);
+  return kExitOk;
+}
+
+int run_bench_solvers(const BenchSolversArgs& a) {
+  const Patient p = make_virtual_patient(a.seed);
+  const LeafletGrid ref =
+      reference_surface(p, with_settings({}, a.ref_sets), a.ref_file, a.command_line);
+  const std::vector<std::vector<std::string>> variants = {
+      {"solver=cholmod-supernodal"},
+      {"solver=cholmod-simplicial"},
+      {"solver=eigen-ldlt"},
+      {"solver=reused-factor-pcg", "rotated_preconditioner=on"},
+      {"solver=reused-factor-pcg", "rotated_preconditioner=off"}};
+  json rows = json::array();
+  std::cout << "solver                       tol     wall_s  solve_s  factorizations  "
+               "pcg_iterations  error_mean_mm  error_max_mm\n";
+  for (const char* tol : {"0.1", "0.001"}) {
+    for (const auto& v : variants) {
+      std::vector<std::string> all = a.sets;
+      all.insert(all.end(), v.begin(), v.end());
+      all.push_back(std::string("pcg_tolerance=") + tol);
+      const Run r = run(p, with_settings({}, all));
+      const auto& s = r.result.summary;
+      const DistanceStats e =
+          symmetric_surface_distance(r.result.samples.back().la_surface.triangulate(),
+                                     ref.triangulate())
+              .symmetric;
+      json row = summary_json(r);
+      row["variant"] = v;
+      row["pcg_tolerance"] = std::stod(tol);
+      row["pcg_iterations"] = s.pcg_iterations;
+      row["factorize_s"] = s.factorize_s;
+      row["error_mean_mm"] = e.mean;
+      row["error_max_mm"] = e.max;
+      rows.push_back(row);
+      std::string name = v[0].substr(7);
+      if (v.size() > 1) name += v[1] == "rotated_preconditioner=on" ? " (rotated)" : " (plain)";
+      char line[240];
+      std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
+                    name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations, s.pcg_iterations,
+                    e.mean, e.max, s.converged() ? "" : ("  FAILED: " + s.reason).c_str());
+      std::cout << line << std::flush;
+    }
+  }
+  json j{{"runs", rows},
+         {"patient_seed", a.seed},
+         {"synthetic", true},
+         {"reference_settings", a.ref_sets},
+         {"provenance", provenance(a.command_line)}};
+  write_json(a.json_path, j);
+  return kExitOk;
+}
 
 void register_bench(CLI::App& app, Context& ctx) {
   auto* bench = app.add_subcommand("bench", "Benchmarks: time and the error it costs");
@@ -156,71 +246,26 @@ void register_bench(CLI::App& app, Context& ctx) {
     auto* cmd = bench->add_subcommand(
         "closure", "One closure of the default virtual patient, timed, against a reference run");
     cmd->footer(
-        "Example:\n  mvtwin bench closure --json closure.json --ref-file closure_ref.h5\n"
+        "Examples:\n"
+        "  mvtwin bench closure --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
+        "--ref-set dt=0.005 --repeat 1 --json closure_small.json\n"
+        "  mvtwin bench closure --json closure.json --ref-file closure_ref.h5   # long: the "
+        "reference, once\n"
         "The timed run uses the paper's settings (ures = vres = 30, dt = 0.01 s) unless --set "
         "says\n"
         "otherwise and is repeated (--repeat; wall_s is the fastest, all are listed). The\n"
         "reference is a finer, smaller-step run (--ref-set); error_mean_mm / error_max_mm are\n"
         "the symmetric point-to-mesh distances between the end surfaces. --ref-file keeps the\n"
         "reference as a simulation file and reuses it when its settings match.");
-    auto json_path = std::make_shared<std::string>();
-    auto ref_file = std::make_shared<std::string>();
-    auto sets = std::make_shared<std::vector<std::string>>();
-    auto ref_sets = std::make_shared<std::vector<std::string>>(kReferenceSettings);
-    auto seed = std::make_shared<unsigned>(1);
-    auto repeat = std::make_shared<int>(3);
-    cmd->add_option("--json", *json_path, "write the figures here");
-    cmd->add_option("--set", *sets, "name=value for the timed run (repeatable)");
-    cmd->add_option("--ref-set", *ref_sets, "name=value for the reference run")
+    auto a = std::make_shared<BenchClosureArgs>();
+    cmd->add_option("--json", a->json_path, "write the figures here");
+    cmd->add_option("--set", a->sets, "name=value for the timed run (repeatable)");
+    cmd->add_option("--ref-set", a->ref_sets, "name=value for the reference run")
         ->default_str(join(kReferenceSettings));
-    cmd->add_option("--ref-file", *ref_file, "reference simulation file to reuse or write");
-    cmd->add_option("--seed", *seed, "virtual patient")->default_val(1);
-    cmd->add_option("--repeat", *repeat, "timed runs (the fastest is reported)")->default_val(3);
-    cmd->callback([=, &ctx] {
-      ctx.run = [=, &ctx] {
-        if (*repeat < 1) throw Error("bench closure: --repeat must be >= 1");
-        const Patient p = make_virtual_patient(*seed);
-        const forward::ClosureOptions o = with_settings({}, *sets);
-        const forward::ClosureOptions ro = with_settings({}, *ref_sets);
-        std::vector<double> walls;
-        Run a;
-        for (int k = 0; k < *repeat; ++k) {
-          std::cout << "timed run " << k + 1 << "/" << *repeat << " ..." << std::endl;
-          Run r = run(p, o);
-          walls.push_back(r.wall_s);
-          if (k == 0 || r.wall_s < a.wall_s) a = std::move(r);
-        }
-        std::cout << a.result.summary.brief_report() << "\n";
-        const LeafletGrid ref_surface = reference_surface(p, ro, *ref_file, ctx);
-        const DistanceStats e =
-            symmetric_surface_distance(a.result.samples.back().la_surface.triangulate(),
-                                       ref_surface.triangulate())
-                .symmetric;
-        std::vector<double> sorted = walls;
-        std::sort(sorted.begin(), sorted.end());
-        json j = summary_json(a);
-        j["wall_s"] = sorted.front();
-        j["wall_s_median"] = sorted[sorted.size() / 2];
-        j["wall_s_all"] = walls;
-        j["error_mean_mm"] = e.mean;
-        j["error_sd_mm"] = e.sd;
-        j["error_p95_mm"] = e.p95;
-        j["error_max_mm"] = e.max;
-        j["reference_settings"] = *ref_sets;
-        j["settings"] = forward::describe_options(o);
-        j["patient_seed"] = *seed;
-        j["synthetic"] = true;
-        j["provenance"] = provenance(ctx);
-        const auto& s = a.result.summary;
-        std::cout << "wall_s " << sorted.front() << " (median " << sorted[sorted.size() / 2]
-                  << " of " << walls.size() << ")  steps " << s.steps << "  dofs " << s.dofs
-                  << "  tets " << s.elements << "  assembly_s " << s.assembly_s << "  solve_s "
-                  << s.solve_s << "  contact_s " << s.contact_s << "\nerror_mean_mm " << e.mean
-                  << "  error_max_mm " << e.max << " (against the reference)\n";
-        write_json(*json_path, j);
-        return 0;
-      };
-    });
+    cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
+    cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);
+    cmd->add_option("--repeat", a->repeat, "timed runs (the fastest is reported)")->default_val(3);
+    run_on_parse(cmd, ctx, a, run_bench_closure);
   }
 
   // ---- bench solvers -----------------------------------------------------------------------
@@ -228,74 +273,22 @@ void register_bench(CLI::App& app, Context& ctx) {
     auto* cmd = bench->add_subcommand("solvers",
                                       "Linear solvers at equal accuracy: time and error of each");
     cmd->footer(
-        "Example:\n  mvtwin bench solvers --json solvers.json --ref-file closure_ref.h5\n"
+        "Examples:\n"
+        "  mvtwin bench solvers --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
+        "--ref-set dt=0.005 --json solvers_small.json\n"
+        "  mvtwin bench solvers --json solvers.json --ref-file closure_ref.h5   # long\n"
         "The default patient's closure at the paper's settings with each linear solver: a\n"
         "factorization every step (CHOLMOD supernodal, CHOLMOD simplicial, Eigen LDLT) and the\n"
         "reused factorization as a preconditioner (with and without the rotation of the\n"
         "factor), each at linear tolerances 0.1 and 1e-3; error against the reference run.");
-    auto json_path = std::make_shared<std::string>();
-    auto ref_file = std::make_shared<std::string>();
-    auto sets = std::make_shared<std::vector<std::string>>();
-    auto ref_sets = std::make_shared<std::vector<std::string>>(kReferenceSettings);
-    auto seed = std::make_shared<unsigned>(1);
-    cmd->add_option("--json", *json_path, "write the figures here");
-    cmd->add_option("--set", *sets, "name=value for every run (repeatable)");
-    cmd->add_option("--ref-set", *ref_sets, "name=value for the reference run")
+    auto a = std::make_shared<BenchSolversArgs>();
+    cmd->add_option("--json", a->json_path, "write the figures here");
+    cmd->add_option("--set", a->sets, "name=value for every run (repeatable)");
+    cmd->add_option("--ref-set", a->ref_sets, "name=value for the reference run")
         ->default_str(join(kReferenceSettings));
-    cmd->add_option("--ref-file", *ref_file, "reference simulation file to reuse or write");
-    cmd->add_option("--seed", *seed, "virtual patient")->default_val(1);
-    cmd->callback([=, &ctx] {
-      ctx.run = [=, &ctx] {
-        const Patient p = make_virtual_patient(*seed);
-        const LeafletGrid ref = reference_surface(p, with_settings({}, *ref_sets), *ref_file, ctx);
-        const std::vector<std::vector<std::string>> variants = {
-            {"solver=cholmod-supernodal"},
-            {"solver=cholmod-simplicial"},
-            {"solver=eigen-ldlt"},
-            {"solver=reused-factor-pcg", "rotated_preconditioner=on"},
-            {"solver=reused-factor-pcg", "rotated_preconditioner=off"}};
-        json rows = json::array();
-        std::cout << "solver                       tol     wall_s  solve_s  factorizations  "
-                     "pcg_iterations  error_mean_mm  error_max_mm\n";
-        for (const char* tol : {"0.1", "0.001"}) {
-          for (const auto& v : variants) {
-            std::vector<std::string> all = *sets;
-            all.insert(all.end(), v.begin(), v.end());
-            all.push_back(std::string("pcg_tolerance=") + tol);
-            const Run r = run(p, with_settings({}, all));
-            const auto& s = r.result.summary;
-            const DistanceStats e =
-                symmetric_surface_distance(r.result.samples.back().la_surface.triangulate(),
-                                           ref.triangulate())
-                    .symmetric;
-            json row = summary_json(r);
-            row["variant"] = v;
-            row["pcg_tolerance"] = std::stod(tol);
-            row["pcg_iterations"] = s.pcg_iterations;
-            row["factorize_s"] = s.factorize_s;
-            row["error_mean_mm"] = e.mean;
-            row["error_max_mm"] = e.max;
-            rows.push_back(row);
-            std::string name = v[0].substr(7);
-            if (v.size() > 1)
-              name += v[1] == "rotated_preconditioner=on" ? " (rotated)" : " (plain)";
-            char line[240];
-            std::snprintf(line, sizeof line, "%-28s %-6s %7.2f %8.2f %15d %15d %14.3f %13.3f%s\n",
-                          name.c_str(), tol, s.wall_s, s.solve_s, s.factorizations,
-                          s.pcg_iterations, e.mean, e.max,
-                          s.converged() ? "" : ("  FAILED: " + s.reason).c_str());
-            std::cout << line << std::flush;
-          }
-        }
-        json j{{"runs", rows},
-               {"patient_seed", *seed},
-               {"synthetic", true},
-               {"reference_settings", *ref_sets},
-               {"provenance", provenance(ctx)}};
-        write_json(*json_path, j);
-        return 0;
-      };
-    });
+    cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
+    cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);
+    run_on_parse(cmd, ctx, a, run_bench_solvers);
   }
 }
 

@@ -13,7 +13,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "commands.h"
+#include "calibrate.h"
+#include "exit_codes.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
@@ -23,19 +24,13 @@
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/inverse/calibration.h"
 #include "output_files.h"
+#include "report.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
-
-std::string num(double v, int prec = 3) {
-  if (std::isnan(v)) return "n/a";
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", prec, v);
-  return b;
-}
 
 json nan_to_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
@@ -92,34 +87,6 @@ json calibration_json(const CalibrationRecord& c) {
             {"source", c.provenance.source}}}};
 }
 
-void print_calibration(const CalibrationRecord& c, std::ostream& os) {
-  os << "calibration of " << c.patient_id << (c.synthetic ? " [SYNTHETIC]" : "") << " by "
-     << c.method << ": " << c.termination << "\n";
-  if (!c.provenance.source.empty()) os << "  " << c.provenance.source << "\n";
-  os << "  error " << num(c.error_before_mm) << " -> " << num(c.error_after_mm) << " mm; "
-     << c.simulations << " simulations (" << c.failed_simulations << " failed, " << c.cache_hits
-     << " from the cache), " << num(c.wall_s, 1) << " s\n";
-  os << "  parameter                                   start     fitted   +- sd      "
-     << (c.synthetic ? "truth" : "") << "\n";
-  for (size_t i = 0; i < c.names.size(); ++i) {
-    const auto k = static_cast<Eigen::Index>(i);
-    char line[256];
-    std::snprintf(line, sizeof line, "  %-40s %8s  %8s  %8s  %8s %s%s\n",
-                  (c.names[i] + (c.units[i] == "1" ? "" : " [" + c.units[i] + "]")).c_str(),
-                  num(c.start[k]).c_str(), num(c.fitted[k]).c_str(), num(c.sd[k]).c_str(),
-                  c.synthetic ? num(c.truth[k]).c_str() : "",
-                  c.identified[i] ? "" : "  (not identified by the data)", "");
-    os << line;
-  }
-  // The strongest trade-offs.
-  for (Eigen::Index i = 0; i < c.correlation.rows(); ++i)
-    for (Eigen::Index j = i + 1; j < c.correlation.cols(); ++j)
-      if (std::abs(c.correlation(i, j)) > 0.8)
-        os << "  trade-off: " << c.names[static_cast<size_t>(i)] << " ~ "
-           << c.names[static_cast<size_t>(j)] << " (correlation " << num(c.correlation(i, j), 2)
-           << ")\n";
-}
-
 void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
   cmd->add_option("--jobs", co->jobs, "simulations at once")
       ->default_val(2)
@@ -138,114 +105,111 @@ void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
       "start the optimizer at the defaults, without the scan");
 }
 
+int run_calibrate(const CalibrateArgs& a) {
+  const Patient p = read_patient_for_run(a.file, a.use_detected);
+  refuse_overwrite(a.out, a.force);
+  forward::ClosureOptions o;
+  ValveParameters start;  // the defaults: never the virtual patient's hidden values
+  for (const std::string& s : a.sets) forward::apply_setting(s, &o, &start);
+  inverse::ObjectiveOptions oo;
+  oo.simulation = o;
+  oo.all_closing_frames = a.all_frames;
+  inverse::ClosureObjective objective(p, inverse::ParameterSpace(a.fit, start), oo);
+  std::cout << "calibrating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
+            << objective.space().names() << "\n  by "
+            << inverse::fit_method_name(a.calibration.method) << ", " << a.calibration.jobs
+            << " simulations at once, model " << o.model.ures << " x " << o.model.vres << ", dt "
+            << o.dt << " s; " << objective.num_residuals() << " distances over "
+            << objective.frames().size() << " frame(s)" << std::endl;
+  inverse::CalibrationOptions opt = a.calibration;
+  const bool tty = isatty(fileno(stderr)) != 0;
+  opt.progress = [tty](int it, double best, int sims) {
+    std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s", tty ? "\r" : "",
+                 it, best, sims, tty ? "   " : "\n");
+    std::fflush(stderr);
+  };
+  const inverse::CalibrationResult r = inverse::calibrate(objective, opt);
+  if (tty) std::fprintf(stderr, "\n");
+  CalibrationRecord rec = inverse::make_calibration_record(r, p, o, opt);
+  rec.patient_file = a.file;
+  rec.provenance.version = kVersion;
+  rec.provenance.command = a.command_line;
+  rec.provenance.created_utc = utc_now_iso8601();
+  rec.provenance.source = assumed_note(p);
+  write_calibration_file(a.out, rec);
+  const fs::path js = fs::path(a.out).replace_extension(".json");
+  nlohmann::json summary = calibration_json(rec);
+  print_calibration(rec, std::cout);
+  if (a.use_detected) {
+    // The model built from the detected anatomy, before and after, against the closing
+    // surfaces stored in the file (for a virtual patient: its truth).
+    const Patient stored = read_patient(a.file, false);
+    if (stored.sequence.num_frames() == p.sequence.num_frames()) {
+      Patient check = p;
+      int compared = 0;
+      for (int f = std::max(0, p.sequence.end_diastole + 1); f < p.sequence.num_frames(); ++f) {
+        const auto i = static_cast<std::size_t>(f);
+        check.sequence.frames[i].la_surface = stored.sequence.frames[i].la_surface;
+        compared += stored.sequence.frames[i].la_surface ? 1 : 0;
+      }
+      if (compared > 0) {
+        inverse::ClosureObjective against(check, objective.space(), oo);
+        const inverse::Evaluation before = against.evaluate(r.start),
+                                  after = against.evaluate(r.fitted);
+        if (after.ok && before.ok) {
+          std::printf("  against the stored valve%s: %.3f -> %.3f mm\n",
+                      p.synthetic ? " (the virtual patient's truth)" : "", before.mean_mm,
+                      after.mean_mm);
+          summary["stored_valve_error_before_mm"] = before.mean_mm;
+          summary["stored_valve_error_after_mm"] = after.mean_mm;
+        }
+      }
+    }
+  }
+  write_json_file(js, summary);
+  std::cout << "wrote " << a.out << " and " << js.string() << "\n";
+  if (!a.vtk.empty()) {
+    for (const auto& [name, x] : {std::pair{"before", r.start}, std::pair{"after", r.fitted}}) {
+      const forward::ClosureResult s = objective.simulate(x);
+      const auto files = forward::export_closure_vtk(s, fs::path(a.vtk) / name);
+      std::cout << "wrote " << files.size() << " files to " << (fs::path(a.vtk) / name).string()
+                << "\n";
+    }
+  }
+  return kExitOk;
+}
+
 void register_calibrate(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("calibrate", "Fit chordae, stiffness and pressure to a patient");
   cmd->footer(
-      "Example:\n  mvtwin calibrate patient.h5 --fit restlength,stiffness,pressure --method "
-      "bobyqa --jobs 2 --out calib.h5\n"
+      "Examples:\n"
+      "  mvtwin calibrate observed.h5 --fit restlength --set ures=20 --set vres=10 --max-sims 20 "
+      "--out calib.h5\n"
+      "  mvtwin calibrate observed.h5 --fit restlength,stiffness,pressure --method bobyqa --jobs 2 "
+      "--out calib_full.h5   # long: the paper's grid\n"
       "Fits the chosen parameters (groups restlength, stiffness, pressure, modulus, or names)\n"
       "so that the simulated closed valve matches the observed one (symmetric point-to-mesh\n"
       "distance); the others stay at their defaults. Writes the calibration (HDF5), a JSON\n"
       "summary beside it, and with --vtk the valve simulated before and after.");
-  auto file = std::make_shared<std::string>();
-  auto out = std::make_shared<std::string>();
-  auto vtk = std::make_shared<std::string>();
-  auto fit = std::make_shared<std::string>("restlength,stiffness,pressure");
-  auto force = std::make_shared<bool>(false);
-  auto all_frames = std::make_shared<bool>(false);
-  auto co = std::make_shared<inverse::CalibrationOptions>();
-  auto sets = std::make_shared<std::vector<std::string>>();
-  auto use_detected = std::make_shared<bool>(false);
+  auto a = std::make_shared<CalibrateArgs>();
   cmd->add_flag(
-      "--use-detected", *use_detected,
+      "--use-detected", a->use_detected,
       "use the sequence detected from the images (mvtwin detect) instead of the stored one");
-  cmd->add_option("FILE", *file, "patient file with an observed closed valve")->required();
-  cmd->add_option("--out", *out, "calibration file (HDF5); a .json summary is written beside it")
+  cmd->add_option("FILE", a->file, "patient file with an observed closed valve")->required();
+  cmd->add_option("--out", a->out, "calibration file (HDF5); a .json summary is written beside it")
       ->required();
-  cmd->add_flag("--force", *force, "replace an existing calibration file");
-  cmd->add_option("--fit", *fit, "what to fit")->default_val("restlength,stiffness,pressure");
-  add_method_option(cmd, &co->method);
-  cmd->add_option("--noise-mm", co->noise_mm,
+  cmd->add_flag("--force", a->force, "replace an existing calibration file");
+  cmd->add_option("--fit", a->fit, "what to fit")->default_val("restlength,stiffness,pressure");
+  add_method_option(cmd, &a->calibration.method);
+  cmd->add_option("--noise-mm", a->calibration.noise_mm,
                   "observation noise SD for the uncertainty, mm (default: the fit's residual RMS)");
-  cmd->add_flag("--all-frames", *all_frames,
+  cmd->add_flag("--all-frames", a->all_frames,
                 "compare every observed closing frame, not only the first closed one");
-  add_fit_options(cmd, co.get());
-  cmd->add_option("--vtk", *vtk, "directory for the valve before and after (ParaView)");
-  cmd->add_option("--set", *sets,
+  add_fit_options(cmd, &a->calibration);
+  cmd->add_option("--vtk", a->vtk, "directory for the valve before and after (ParaView)");
+  cmd->add_option("--set", a->sets,
                   "name=value for the calibration model (repeatable), e.g. --set ures=20");
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      const Patient p = read_patient_for_run(*file, *use_detected);
-      refuse_overwrite_path(*out, *force);
-      forward::ClosureOptions o;
-      ValveParameters start;  // the defaults: never the virtual patient's hidden values
-      for (const std::string& a : *sets) forward::apply_setting(a, &o, &start);
-      inverse::ObjectiveOptions oo;
-      oo.simulation = o;
-      oo.all_closing_frames = *all_frames;
-      inverse::ClosureObjective objective(p, inverse::ParameterSpace(*fit, start), oo);
-      std::cout << "calibrating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
-                << objective.space().names() << "\n  by " << inverse::fit_method_name(co->method)
-                << ", " << co->jobs << " simulations at once, model " << o.model.ures << " x "
-                << o.model.vres << ", dt " << o.dt << " s; " << objective.num_residuals()
-                << " distances over " << objective.frames().size() << " frame(s)" << std::endl;
-      inverse::CalibrationOptions opt = *co;
-      const bool tty = isatty(fileno(stderr)) != 0;
-      opt.progress = [tty](int it, double best, int sims) {
-        std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s",
-                     tty ? "\r" : "", it, best, sims, tty ? "   " : "\n");
-        std::fflush(stderr);
-      };
-      const inverse::CalibrationResult r = inverse::calibrate(objective, opt);
-      if (tty) std::fprintf(stderr, "\n");
-      CalibrationRecord rec = inverse::make_calibration_record(r, p, o, opt);
-      rec.patient_file = *file;
-      rec.provenance.version = kVersion;
-      rec.provenance.command = ctx.command_line;
-      rec.provenance.created_utc = utc_now_iso8601();
-      rec.provenance.source = assumed_note(p);
-      write_calibration_file(*out, rec);
-      const fs::path js = fs::path(*out).replace_extension(".json");
-      nlohmann::json summary = calibration_json(rec);
-      print_calibration(rec, std::cout);
-      if (*use_detected) {
-        // The model built from the detected anatomy, before and after, against the closing
-        // surfaces stored in the file (for a virtual patient: its truth).
-        const Patient stored = read_patient(*file, false);
-        if (stored.sequence.num_frames() == p.sequence.num_frames()) {
-          Patient check = p;
-          int compared = 0;
-          for (int f = std::max(0, p.sequence.end_diastole + 1); f < p.sequence.num_frames(); ++f) {
-            const auto i = static_cast<std::size_t>(f);
-            check.sequence.frames[i].la_surface = stored.sequence.frames[i].la_surface;
-            compared += stored.sequence.frames[i].la_surface ? 1 : 0;
-          }
-          if (compared > 0) {
-            inverse::ClosureObjective against(check, objective.space(), oo);
-            const inverse::Evaluation b = against.evaluate(r.start), a = against.evaluate(r.fitted);
-            if (a.ok && b.ok) {
-              std::printf("  against the stored valve%s: %.3f -> %.3f mm\n",
-                          p.synthetic ? " (the virtual patient's truth)" : "", b.mean_mm,
-                          a.mean_mm);
-              summary["stored_valve_error_before_mm"] = b.mean_mm;
-              summary["stored_valve_error_after_mm"] = a.mean_mm;
-            }
-          }
-        }
-      }
-      write_json_file(js, summary);
-      std::cout << "wrote " << *out << " and " << js.string() << "\n";
-      if (!vtk->empty()) {
-        for (const auto& [name, x] : {std::pair{"before", r.start}, std::pair{"after", r.fitted}}) {
-          const forward::ClosureResult s = objective.simulate(x);
-          const auto files = forward::export_closure_vtk(s, fs::path(*vtk) / name);
-          std::cout << "wrote " << files.size() << " files to " << (fs::path(*vtk) / name).string()
-                    << "\n";
-        }
-      }
-      return 0;
-    };
-  });
+  run_on_parse(cmd, ctx, a, run_calibrate);
 }
 
 CLI::Option* add_method_option(CLI::App* cmd, inverse::FitMethod* method) {

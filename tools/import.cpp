@@ -9,7 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "commands.h"
+#include "exit_codes.h"
+#include "import.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/image_io.h"
@@ -92,19 +93,183 @@ nlohmann::json stats_json(const DistanceStats& d) {
 
 }  // namespace
 
+int run_import(const ImportArgs& a) {
+  if (a.frames.empty() && a.sequences.empty() && a.meshes.empty())
+    throw Error(
+        "import: give label maps with --frame FILE[@TIME] or --sequence FILE, or surfaces with "
+        "--mesh");
+  refuse_overwrite(a.out, a.force);
+  if (!a.json_out.empty()) refuse_overwrite(a.json_out, a.force);
+  detection::PatientImportOptions o = a.options;
+  for (const std::string& r : a.ruptures) {
+    const auto colon = r.find(':');
+    double s0 = 0, s1 = 0;
+    try {
+      if (colon == std::string::npos) throw std::invalid_argument(r);
+      size_t used0 = 0, used1 = 0;
+      s0 = std::stod(r.substr(0, colon), &used0);
+      s1 = std::stod(r.substr(colon + 1), &used1);
+      if (used0 != colon || used1 != r.size() - colon - 1) throw std::invalid_argument(r);
+    } catch (const std::exception&) {
+      throw Error("--ruptured-chordae: '" + r + "' is not S0:S1 (e.g. 0.6:0.7)");
+    }
+    o.ruptured_chordae.push_back({s0, s1});
+  }
+  const bool explicit_labels = !a.labels.empty();
+  if (explicit_labels) {
+    o.fit.labels = {(a.labels)[0], (a.labels)[1], a.labels.size() > 2 ? (a.labels)[2] : 0, 0,
+                    "explicit"};
+  } else {
+    o.fit.labels = detection::segmentation_labels(a.convention.empty() ? "mvtool" : a.convention);
+  }
+  o.fit.labels.papillary = a.papillary;
+  o.fit.use_annulus_label = !a.no_ring;
+  if (!a.atrium.empty())
+    o.fit.atrial_direction = Eigen::Vector3d((a.atrium)[0], (a.atrium)[1], (a.atrium)[2]);
+  std::vector<detection::LabelFrame> lf;
+  for (const std::string& arg : a.frames) {
+    const auto [file, time] = split_time(arg);
+    for (auto& f : read_label_file(file, time, false, explicit_labels)) lf.push_back(std::move(f));
+    if (!time && a.frames.size() + a.meshes.size() > 1)
+      throw Error(file + ": several frames need their times: give each as FILE@TIME (s)");
+  }
+  for (const std::string& arg : a.meshes) {
+    const auto [files, time] = split_time(arg);
+    if (!time && a.frames.size() + a.meshes.size() > 1)
+      throw Error(files + ": several frames need their times: give each as FILES@TIME (s)");
+    std::vector<std::string> names;
+    std::stringstream ss(files);
+    for (std::string n; std::getline(ss, n, ',');) names.push_back(n);
+    if (names.empty() || names.size() > 2)
+      throw Error("--mesh " + arg + ": one file (both leaflets) or two (anterior,posterior)");
+    std::vector<TriangleMesh> ms;
+    for (const std::string& n : names) {
+      SurfaceFile sf = read_surface_mesh(n);
+      const std::string space = a.mesh_space.empty() ? (sf.space.empty() ? "RAS" : sf.space)
+                                                     : (a.mesh_space == "lps" ? "LPS" : "RAS");
+      if (sf.space.empty() && a.mesh_space.empty())
+        std::cout << n
+                  << ": no SPACE= mark in the file: taken as RAS (--mesh-space lps if it is "
+                     "LPS, as 3D Slicer writes)\n";
+      if (space == "LPS") sf.mesh.V.leftCols(2) *= -1.0;
+      ms.push_back(std::move(sf.mesh));
+    }
+    detection::LabelFrame f;
+    f.time_s = time.value_or(0.0);
+    f.source = files;
+    if (ms.size() == 2) {
+      f.meshes = std::make_pair(ms[0], ms[1]);
+    } else {
+      f.meshes = detection::split_leaflet_meshes(ms[0], names[0]);
+      std::cout << names[0]
+                << ": two pieces; the rounder one is taken as the anterior leaflet, the "
+                   "crescent as the posterior\n";
+    }
+    lf.push_back(std::move(f));
+  }
+  for (const std::string& s : a.sequences)
+    for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels))
+      lf.push_back(std::move(f));
+  std::vector<Landmark> ord;
+  for (const std::string& n : a.order) {
+    const auto l = detection::landmark_from_label(n);
+    if (!l) throw Error("--markup-order: '" + n + "' names no landmark (see docs/import.md)");
+    ord.push_back(*l);
+  }
+  std::vector<detection::LandmarkInput> lm;
+  for (const std::string& arg : a.markups) {
+    const auto [file, time] = split_time(arg);
+    const MarkupList m = read_markups(file);
+    for (auto& x : detection::landmarks_from_markups(m, file, time, ord)) lm.push_back(x);
+  }
+  std::cout << "fitting " << lf.size() << " frame(s) (" << o.fit.labels.describe() << ")\n";
+  detection::PatientImport r = detection::import_patient(std::move(lf), lm, o);
+  r.patient.provenance.command = a.command_line;
+  const ValveSequence& seq = r.patient.sequence;
+  nlohmann::json report = {{"patient_id", r.patient.id},
+                           {"synthetic", false},
+                           {"labels", o.fit.labels.describe()},
+                           {"end_diastole", seq.end_diastole},
+                           {"first_closed", seq.first_closed},
+                           {"assumed", r.assumed},
+                           {"notes", r.notes},
+                           {"frames", nlohmann::json::array()}};
+  report.update(provenance(a.command_line));
+  std::ostringstream rep;
+  for (size_t f = 0; f < r.fits.size(); ++f) {
+    const detection::FrameFit& fit = r.fits[f];
+    const std::string phase = static_cast<int>(f) == seq.end_diastole   ? "  [end-diastole]"
+                              : static_cast<int>(f) == seq.first_closed ? "  [first closed]"
+                                                                        : "";
+    rep << "frame " << f << " (" << fit.source << ") t=" << fmt(seq.frames[f].time_s, 3) << " s"
+        << phase << ": " << fit.anterior_voxels << " anterior / " << fit.posterior_voxels
+        << " posterior voxels, orifice " << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
+    rep << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 "
+        << fmt(fit.surface_to_mask.p95) << "), atrial mask -> surface "
+        << fmt(fit.mask_to_surface.mean) << " mm (p95 " << fmt(fit.mask_to_surface.p95) << ")\n";
+    rep << "  annulus: " << fit.annulus_source;
+    if (fit.annulus_to_label) rep << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
+    if (fit.rim_vs_label)
+      rep << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it ("
+          << fmt(fit.rim_to_label_voxels->mean) << " mm from the label's voxels)";
+    rep << "\n";
+    std::string obs, ass;
+    for (int l = 0; l < kNumLandmarks; ++l) {
+      if (!seq.frames[f].landmark_observed[l]) continue;
+      (seq.frames[f].landmark_assumed[l] ? ass : obs) += " " + std::string(kLandmarkNames[l]);
+    }
+    rep << "  observed:" << (obs.empty() ? " -" : obs) << "\n";
+    if (!ass.empty()) rep << "  ASSUMED: " << ass << "\n";
+    for (const auto& w : fit.warnings) rep << "  warning: " << w << "\n";
+    nlohmann::json fj = {{"source", fit.source},
+                         {"time_s", seq.frames[f].time_s},
+                         {"orifice_area_mm2", fit.orifice_area_mm2},
+                         {"annulus_source", fit.annulus_source},
+                         {"surface_to_mask", stats_json(fit.surface_to_mask)},
+                         {"mask_to_surface", stats_json(fit.mask_to_surface)},
+                         {"anterior_voxels", fit.anterior_voxels},
+                         {"posterior_voxels", fit.posterior_voxels},
+                         {"annulus_voxels", fit.annulus_voxels},
+                         {"notes", fit.notes},
+                         {"warnings", fit.warnings}};
+    if (fit.annulus_to_label) fj["annulus_to_label"] = stats_json(*fit.annulus_to_label);
+    if (fit.rim_vs_label) fj["rim_vs_label"] = stats_json(*fit.rim_vs_label);
+    if (fit.rim_to_label_voxels) fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
+    report["frames"].push_back(fj);
+  }
+  for (const auto& n : r.notes) rep << "note: " << n << "\n";
+  for (const auto& name : r.assumed) rep << "ASSUMED: " << name << "\n";
+  std::cout << rep.str();
+  r.patient.import_report = rep.str();
+  write_patient(a.out, r.patient);
+  if (!a.json_out.empty()) {
+    const std::string text = report.dump(2);
+    write_atomically(a.json_out, [&](const fs::path& tmp) {
+      std::ofstream f(tmp);
+      f << text << "\n";
+      f.close();
+      if (!f) throw Error(a.json_out + ": write failed");
+    });
+  }
+  std::cout << "wrote " << a.out << " (real patient " << r.patient.id << ", " << seq.num_frames()
+            << " frame(s))\n";
+  return kExitOk;
+}
+
 void register_import(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand(
       "import", "Build a real patient from segmentations (label maps) and landmarks");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin import --frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json "
-      "--out p.h5\n"
-      "  mvtwin import --sequence valve.seq.nrrd --convention mvseg --papillary-label 4 --out "
-      "p.h5\n"
-      "  mvtwin import --frame 008_gt.nii.gz --out 008.h5          # one closed frame: measured, "
-      "not simulated\n"
-      "  mvtwin import --mesh ed_al.stl,ed_pl.stl@0 --mesh es.vtp@0.24 --markups tips.mrk.json "
-      "--out p.h5\n"
+      "  mvtwin import --frame seg/frame_11.nii.gz@0.40 --frame seg/frame_15.nii.gz@0.55 "
+      "--markups seg/tips_11.mrk.json@0.40 --out imported.h5\n"
+      "  mvtwin import --sequence seg_seq/labels.seq.nrrd --convention mvseg --out "
+      "imported_seq.h5\n"
+      "  mvtwin import --frame seg/frame_15.nii.gz --out one_closed.h5   # measured, not "
+      "simulated\n"
+      "(the label maps of mvtwin export observed.h5 --labelmap seg/ ...; from 3D Slicer: e.g.\n"
+      "--frame ed.seg.nrrd@0.00 --frame es.seg.nrrd@0.24 --markups tips.mrk.json; surface\n"
+      "meshes: --mesh ed_al.stl,ed_pl.stl@0 --mesh es.vtp@0.24)\n"
       "Label maps: .nii/.nii.gz (3D, or 4D with --sequence), .nrrd/.nhdr, 3D Slicer .seg.nrrd "
       "(segments found by\n"
       "name) and .seq.nrrd, .mha/.mhd. Labels: --convention mvtool (1 annulus, 2 anterior, 3 "
@@ -118,234 +283,55 @@ void register_import(CLI::App& app, Context& ctx) {
       "neither labelled nor given are ASSUMED from published anatomy, and every report says so.\n"
       "End-diastole and the first closed frame: the largest and smallest leaflet opening, or\n"
       "--end-diastole I --first-closed I (frame indices in time order).");
-  auto frames = std::make_shared<std::vector<std::string>>();
-  auto sequences = std::make_shared<std::vector<std::string>>();
-  auto markups = std::make_shared<std::vector<std::string>>();
-  auto meshes = std::make_shared<std::vector<std::string>>();
-  auto mesh_space = std::make_shared<std::string>();
-  auto order = std::make_shared<std::vector<std::string>>();
-  auto out = std::make_shared<std::string>();
-  auto json_out = std::make_shared<std::string>();
-  auto convention = std::make_shared<std::string>();
-  auto labels = std::make_shared<std::vector<int>>();
-  auto papillary = std::make_shared<int>(0);
-  auto atrium = std::make_shared<std::vector<double>>();
-  auto no_ring = std::make_shared<bool>(false);
-  auto force = std::make_shared<bool>(false);
-  auto opt = std::make_shared<detection::PatientImportOptions>();
-  cmd->add_option("--frame", *frames, "label map of one frame, FILE or FILE@TIME (s); repeatable");
-  cmd->add_option("--sequence", *sequences,
+  auto a = std::make_shared<ImportArgs>();
+  cmd->add_option("--frame", a->frames,
+                  "label map of one frame, FILE or FILE@TIME (s); repeatable");
+  cmd->add_option("--sequence", a->sequences,
                   "3D+t label maps (4D NIfTI, .seq.nrrd, 4D .mha); times from the file");
-  cmd->add_option("--mesh", *meshes,
+  cmd->add_option("--mesh", a->meshes,
                   "leaflet surfaces of one frame instead of a label map: ANTERIOR,POSTERIOR[@TIME] "
                   "or BOTH[@TIME] "
                   "(.stl, .ply, .vtk, .vtp); repeatable");
-  cmd->add_option("--mesh-space", *mesh_space,
+  cmd->add_option("--mesh-space", a->mesh_space,
                   "ras or lps (default: the file's SPACE= mark, else RAS)")
       ->check(CLI::IsMember({"ras", "lps"}));
-  cmd->add_option("--markups", *markups,
+  cmd->add_option("--markups", a->markups,
                   "3D Slicer markups FILE or FILE@TIME (.mrk.json, .fcsv); repeatable");
-  cmd->add_option("--markup-order", *order, "landmark names of unlabelled markup points, in order")
+  cmd->add_option("--markup-order", a->order,
+                  "landmark names of unlabelled markup points, in order")
       ->delimiter(',');
   auto* conv =
-      cmd->add_option("--convention", *convention, "label convention: mvtool (default) or mvseg");
-  cmd->add_option("--labels", *labels,
+      cmd->add_option("--convention", a->convention, "label convention: mvtool (default) or mvseg");
+  cmd->add_option("--labels", a->labels,
                   "label values ANTERIOR,POSTERIOR[,ANNULUS] (0: no annulus label)")
       ->delimiter(',')
       ->expected(2, 3)
       ->excludes(conv);
-  cmd->add_option("--papillary-label", *papillary,
+  cmd->add_option("--papillary-label", a->papillary,
                   "label value of the papillary muscles (their tips)");
-  cmd->add_flag("--no-annulus-label", *no_ring,
+  cmd->add_flag("--no-annulus-label", a->no_ring,
                 "fit the annulus to the leaflet rim even when it is labelled");
-  cmd->add_option("--atrium", *atrium, "direction into the left atrium, x,y,z (default: inferred)")
+  cmd->add_option("--atrium", a->atrium,
+                  "direction into the left atrium, x,y,z (default: inferred)")
       ->delimiter(',')
       ->expected(3);
-  cmd->add_option("--end-diastole", opt->end_diastole,
+  cmd->add_option("--end-diastole", a->options.end_diastole,
                   "end-diastolic frame index (time order; default: from the opening)");
-  cmd->add_option("--first-closed", opt->first_closed,
+  cmd->add_option("--first-closed", a->options.first_closed,
                   "first closed frame index (default: from the opening)");
-  cmd->add_option("--ures", opt->fit.ures, "grid points around the annulus (even, >= 8)")
+  cmd->add_option("--ures", a->options.fit.ures, "grid points around the annulus (even, >= 8)")
       ->default_val(30);
-  cmd->add_option("--vres", opt->fit.vres, "grid points from annulus to free edge (>= 3)")
+  cmd->add_option("--vres", a->options.fit.vres, "grid points from annulus to free edge (>= 3)")
       ->default_val(30);
-  cmd->add_option("--id", opt->id, "patient identifier (default: the first file's name)");
-  auto ruptures = std::make_shared<std::vector<std::string>>();
-  cmd->add_option("--ruptured-chordae", *ruptures,
+  cmd->add_option("--id", a->options.id, "patient identifier (default: the first file's name)");
+  cmd->add_option("--ruptured-chordae", a->ruptures,
                   "torn marginal chordae seen in the images, S0:S1 (grid coordinate s around the "
                   "annulus from the anterolateral commissure, anterior leaflet below 0.5); "
                   "repeatable");
-  cmd->add_option("--json", *json_out, "also write the fit report as JSON");
-  cmd->add_option("--out", *out, "patient file to write (HDF5)")->required();
-  cmd->add_flag("--force", *force, "replace an existing file");
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      if (frames->empty() && sequences->empty() && meshes->empty())
-        throw Error(
-            "import: give label maps with --frame FILE[@TIME] or --sequence FILE, or surfaces with "
-            "--mesh");
-      refuse_overwrite_path(*out, *force);
-      if (!json_out->empty()) refuse_overwrite_path(*json_out, *force);
-      detection::PatientImportOptions o = *opt;
-      for (const std::string& r : *ruptures) {
-        const auto colon = r.find(':');
-        double s0 = 0, s1 = 0;
-        try {
-          if (colon == std::string::npos) throw std::invalid_argument(r);
-          size_t used0 = 0, used1 = 0;
-          s0 = std::stod(r.substr(0, colon), &used0);
-          s1 = std::stod(r.substr(colon + 1), &used1);
-          if (used0 != colon || used1 != r.size() - colon - 1) throw std::invalid_argument(r);
-        } catch (const std::exception&) {
-          throw Error("--ruptured-chordae: '" + r + "' is not S0:S1 (e.g. 0.6:0.7)");
-        }
-        o.ruptured_chordae.push_back({s0, s1});
-      }
-      const bool explicit_labels = !labels->empty();
-      if (explicit_labels) {
-        o.fit.labels = {(*labels)[0], (*labels)[1], labels->size() > 2 ? (*labels)[2] : 0, 0,
-                        "explicit"};
-      } else {
-        o.fit.labels = detection::segmentation_labels(convention->empty() ? "mvtool" : *convention);
-      }
-      o.fit.labels.papillary = *papillary;
-      o.fit.use_annulus_label = !*no_ring;
-      if (!atrium->empty())
-        o.fit.atrial_direction = Eigen::Vector3d((*atrium)[0], (*atrium)[1], (*atrium)[2]);
-      std::vector<detection::LabelFrame> lf;
-      for (const std::string& a : *frames) {
-        const auto [file, time] = split_time(a);
-        for (auto& f : read_label_file(file, time, false, explicit_labels))
-          lf.push_back(std::move(f));
-        if (!time && frames->size() + meshes->size() > 1)
-          throw Error(file + ": several frames need their times: give each as FILE@TIME (s)");
-      }
-      for (const std::string& a : *meshes) {
-        const auto [files, time] = split_time(a);
-        if (!time && frames->size() + meshes->size() > 1)
-          throw Error(files + ": several frames need their times: give each as FILES@TIME (s)");
-        std::vector<std::string> names;
-        std::stringstream ss(files);
-        for (std::string n; std::getline(ss, n, ',');) names.push_back(n);
-        if (names.empty() || names.size() > 2)
-          throw Error("--mesh " + a + ": one file (both leaflets) or two (anterior,posterior)");
-        std::vector<TriangleMesh> ms;
-        for (const std::string& n : names) {
-          SurfaceFile sf = read_surface_mesh(n);
-          const std::string space = mesh_space->empty() ? (sf.space.empty() ? "RAS" : sf.space)
-                                                        : (*mesh_space == "lps" ? "LPS" : "RAS");
-          if (sf.space.empty() && mesh_space->empty())
-            std::cout << n
-                      << ": no SPACE= mark in the file: taken as RAS (--mesh-space lps if it is "
-                         "LPS, as 3D Slicer writes)\n";
-          if (space == "LPS") sf.mesh.V.leftCols(2) *= -1.0;
-          ms.push_back(std::move(sf.mesh));
-        }
-        detection::LabelFrame f;
-        f.time_s = time.value_or(0.0);
-        f.source = files;
-        if (ms.size() == 2) {
-          f.meshes = std::make_pair(ms[0], ms[1]);
-        } else {
-          f.meshes = detection::split_leaflet_meshes(ms[0], names[0]);
-          std::cout << names[0]
-                    << ": two pieces; the rounder one is taken as the anterior leaflet, the "
-                       "crescent as the posterior\n";
-        }
-        lf.push_back(std::move(f));
-      }
-      for (const std::string& s : *sequences)
-        for (auto& f : read_label_file(s, std::nullopt, true, explicit_labels))
-          lf.push_back(std::move(f));
-      std::vector<Landmark> ord;
-      for (const std::string& n : *order) {
-        const auto l = detection::landmark_from_label(n);
-        if (!l) throw Error("--markup-order: '" + n + "' names no landmark (see docs/import.md)");
-        ord.push_back(*l);
-      }
-      std::vector<detection::LandmarkInput> lm;
-      for (const std::string& a : *markups) {
-        const auto [file, time] = split_time(a);
-        const MarkupList m = read_markups(file);
-        for (auto& x : detection::landmarks_from_markups(m, file, time, ord)) lm.push_back(x);
-      }
-      std::cout << "fitting " << lf.size() << " frame(s) (" << o.fit.labels.describe() << ")\n";
-      detection::PatientImport r = detection::import_patient(std::move(lf), lm, o);
-      r.patient.provenance.command = ctx.command_line;
-      const ValveSequence& seq = r.patient.sequence;
-      nlohmann::json report = {{"patient_id", r.patient.id},
-                               {"synthetic", false},
-                               {"labels", o.fit.labels.describe()},
-                               {"end_diastole", seq.end_diastole},
-                               {"first_closed", seq.first_closed},
-                               {"assumed", r.assumed},
-                               {"notes", r.notes},
-                               {"frames", nlohmann::json::array()}};
-      report.update(provenance(ctx));
-      std::ostringstream rep;
-      for (size_t f = 0; f < r.fits.size(); ++f) {
-        const detection::FrameFit& fit = r.fits[f];
-        const std::string phase = static_cast<int>(f) == seq.end_diastole   ? "  [end-diastole]"
-                                  : static_cast<int>(f) == seq.first_closed ? "  [first closed]"
-                                                                            : "";
-        rep << "frame " << f << " (" << fit.source << ") t=" << fmt(seq.frames[f].time_s, 3) << " s"
-            << phase << ": " << fit.anterior_voxels << " anterior / " << fit.posterior_voxels
-            << " posterior voxels, orifice " << fmt(fit.orifice_area_mm2, 0) << " mm^2\n";
-        rep << "  surface -> mask " << fmt(fit.surface_to_mask.mean) << " mm (p95 "
-            << fmt(fit.surface_to_mask.p95) << "), atrial mask -> surface "
-            << fmt(fit.mask_to_surface.mean) << " mm (p95 " << fmt(fit.mask_to_surface.p95)
-            << ")\n";
-        rep << "  annulus: " << fit.annulus_source;
-        if (fit.annulus_to_label)
-          rep << ", to its label " << fmt(fit.annulus_to_label->mean) << " mm";
-        if (fit.rim_vs_label)
-          rep << "; the leaflet rim is " << fmt(fit.rim_vs_label->mean) << " mm from it ("
-              << fmt(fit.rim_to_label_voxels->mean) << " mm from the label's voxels)";
-        rep << "\n";
-        std::string obs, ass;
-        for (int l = 0; l < kNumLandmarks; ++l) {
-          if (!seq.frames[f].landmark_observed[l]) continue;
-          (seq.frames[f].landmark_assumed[l] ? ass : obs) += " " + std::string(kLandmarkNames[l]);
-        }
-        rep << "  observed:" << (obs.empty() ? " -" : obs) << "\n";
-        if (!ass.empty()) rep << "  ASSUMED: " << ass << "\n";
-        for (const auto& w : fit.warnings) rep << "  warning: " << w << "\n";
-        nlohmann::json fj = {{"source", fit.source},
-                             {"time_s", seq.frames[f].time_s},
-                             {"orifice_area_mm2", fit.orifice_area_mm2},
-                             {"annulus_source", fit.annulus_source},
-                             {"surface_to_mask", stats_json(fit.surface_to_mask)},
-                             {"mask_to_surface", stats_json(fit.mask_to_surface)},
-                             {"anterior_voxels", fit.anterior_voxels},
-                             {"posterior_voxels", fit.posterior_voxels},
-                             {"annulus_voxels", fit.annulus_voxels},
-                             {"notes", fit.notes},
-                             {"warnings", fit.warnings}};
-        if (fit.annulus_to_label) fj["annulus_to_label"] = stats_json(*fit.annulus_to_label);
-        if (fit.rim_vs_label) fj["rim_vs_label"] = stats_json(*fit.rim_vs_label);
-        if (fit.rim_to_label_voxels)
-          fj["rim_to_label_voxels"] = stats_json(*fit.rim_to_label_voxels);
-        report["frames"].push_back(fj);
-      }
-      for (const auto& n : r.notes) rep << "note: " << n << "\n";
-      for (const auto& a : r.assumed) rep << "ASSUMED: " << a << "\n";
-      std::cout << rep.str();
-      r.patient.import_report = rep.str();
-      write_patient(*out, r.patient);
-      if (!json_out->empty()) {
-        const std::string text = report.dump(2);
-        write_atomically(*json_out, [&](const fs::path& tmp) {
-          std::ofstream f(tmp);
-          f << text << "\n";
-          f.close();
-          if (!f) throw Error(*json_out + ": write failed");
-        });
-      }
-      std::cout << "wrote " << *out << " (real patient " << r.patient.id << ", " << seq.num_frames()
-                << " frame(s))\n";
-      return 0;
-    };
-  });
+  cmd->add_option("--json", a->json_out, "also write the fit report as JSON");
+  cmd->add_option("--out", a->out, "patient file to write (HDF5)")->required();
+  cmd->add_flag("--force", a->force, "replace an existing file");
+  run_on_parse(cmd, ctx, a, run_import);
 }
 
 }  // namespace mvtwin::tools

@@ -20,14 +20,7 @@ int main(int argc, char** argv) {
   app.footer("Run 'mvtwin <command> --help' for a command's options and an example.");
   mvtwin::tools::Context ctx;
   for (int i = 0; i < argc; ++i) ctx.command_line += (i ? " " : "") + std::string(argv[i]);
-  mvtwin::tools::register_commands(app, ctx);
-  mvtwin::tools::register_bench(app, ctx);
-  mvtwin::tools::register_calibrate(app, ctx);
-  mvtwin::tools::register_clip(app, ctx);
-  mvtwin::tools::register_render_tee(app, ctx);
-  mvtwin::tools::register_detect(app, ctx);
-  mvtwin::tools::register_import(app, ctx);
-  mvtwin::tools::register_study(app, ctx);
+  mvtwin::tools::add_commands(app, ctx);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -14,13 +14,13 @@ namespace mvtwin::tools {
 void write_simulation_result(const std::filesystem::path& out, const forward::ClosureResult& r,
                              const forward::ClosureOptions& o, const ValveParameters& par,
                              const Patient& p, const std::string& patient_file,
-                             const Context& ctx) {
+                             const std::string& command_line) {
   SimulationRecord rec = forward::make_simulation_record(r, o, par);
   rec.patient_id = p.id;
   rec.patient_file = patient_file;
   rec.synthetic = p.synthetic;
   rec.provenance.version = kVersion;
-  rec.provenance.command = ctx.command_line;
+  rec.provenance.command = command_line;
   rec.provenance.created_utc = utc_now_iso8601();
   rec.provenance.seed = p.provenance.seed;
   rec.provenance.source = assumed_note(p);

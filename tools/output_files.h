@@ -6,7 +6,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "commands.h"
 #include "mvtwin/core/cache_key.h"
 #include "mvtwin/core/patient.h"
 #include "mvtwin/forward/closure_simulation.h"
@@ -14,11 +13,11 @@
 namespace mvtwin::tools {
 
 /// Writes `result` of `patient` (read from `patient_file`) as a simulation file recording the
-/// options, parameters, mvtwin version, command line, time and the patient's seed.
+/// options, parameters, mvtwin version, `command_line`, time and the patient's seed.
 void write_simulation_result(const std::filesystem::path& out, const forward::ClosureResult& result,
                              const forward::ClosureOptions& options,
                              const ValveParameters& parameters, const Patient& patient,
-                             const std::string& patient_file, const Context& ctx);
+                             const std::string& patient_file, const std::string& command_line);
 
 /// "input ASSUMED (...): names" for a patient with landmarks estimated rather than observed, ""
 /// otherwise: recorded in every result file made from it.

@@ -14,13 +14,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "commands.h"
+#include "exit_codes.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/image_io.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/detection/tee_renderer.h"
+#include "render_tee.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -75,108 +76,103 @@ cv::Mat slice_image(const ImageVolume& im, int axis, const ValveFrame* overlay, 
   return rgb;
 }
 
+int run_render_tee(const RenderTeeArgs& a) {
+  Patient p = read_patient(a.file, true);
+  const fs::path dest = a.out.empty() ? fs::path(a.file) : fs::path(a.out);
+  if (!a.out.empty()) refuse_overwrite(dest, a.force);
+  if (a.out.empty() && !p.images.empty() && !a.force)
+    throw Error(a.file + " already holds " + std::to_string(p.images.size()) +
+                " image volumes (--force replaces them, --out writes a copy)");
+  const detection::TeeGeometry g = detection::tee_geometry(p.sequence, a.render);
+  std::cout << "rendering " << p.sequence.num_frames() << " frames of " << p.id
+            << (p.synthetic ? " [SYNTHETIC]" : "") << ": " << g.grid.size[0] << "^3 voxels of "
+            << a.render.voxel_mm << " mm, noise " << a.render.noise << ", speckle "
+            << a.render.speckle << ", drop-outs " << a.render.dropout_fraction << ", seed "
+            << a.render.seed << std::endl;
+  std::vector<ImageVolume> volumes;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int f = 0; f < p.sequence.num_frames(); ++f) {
+    volumes.push_back(detection::render_tee_frame(p.sequence, f, g, a.render));
+    std::cerr << "\r  frame " << f + 1 << "/" << p.sequence.num_frames() << std::flush;
+  }
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::cerr << "\n";
+  std::cout << "  " << s << " s (" << s / p.sequence.num_frames() << " s per volume)\n";
+  p.images = volumes;
+  // The file says what made its images (the patient's own provenance stays as it was).
+  std::ostringstream made;
+  made << "; images: synthetic TEE by '" << a.command_line << "' (voxel_mm=" << a.render.voxel_mm
+       << " noise=" << a.render.noise << " speckle=" << a.render.speckle
+       << " dropout=" << a.render.dropout_fraction
+       << " attenuation_db_per_mm=" << a.render.attenuation_db_per_mm
+       << " probe_jitter_deg=" << a.render.probe_jitter_deg << " seed=" << a.render.seed
+       << ", mvtwin " << kVersion << ")";
+  p.provenance.source += made.str();
+  write_patient(dest, p);
+  std::cout << "wrote " << volumes.size() << " volumes into " << dest.string() << " (/images)\n";
+  if (!a.export_dir.empty()) {
+    create_output_directory(a.export_dir);
+    const fs::path seq = fs::path(a.export_dir) / (p.id + "_tee.seq.nrrd");
+    write_image_series(seq, volumes);
+    std::cout << "wrote " << seq.string() << " (3D Slicer: drag and drop; a volume sequence)\n";
+  }
+  if (!a.png.empty()) {
+    create_output_directory(a.png);
+    const int scale = std::max(1, static_cast<int>(std::lround(3.0 * a.render.voxel_mm)));
+    for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
+      if (f < 0) continue;
+      const char* phase = f == p.sequence.end_diastole ? "ed" : "closed";
+      for (int axis = 0; axis < 3; ++axis) {
+        for (bool overlay : {false, true}) {
+          const cv::Mat m =
+              slice_image(volumes[f], axis, overlay ? &p.sequence.frames[f] : nullptr, scale);
+          const std::string name = p.id + "_" + phase + "_" + std::string("xyz").substr(axis, 1) +
+                                   (overlay ? "_overlay" : "") + ".png";
+          const fs::path path = fs::path(a.png) / name;
+          write_atomically(path, [&](const fs::path& tmp) {
+            if (!cv::imwrite(tmp.string() + ".png", m))
+              throw Error(path.string() + ": cannot write PNG");
+            fs::rename(tmp.string() + ".png", tmp);
+          });
+        }
+      }
+    }
+    std::cout << "wrote PNG slices to " << a.png << "\n";
+  }
+  return kExitOk;
+}
+
 void register_render_tee(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("render-tee", "Synthetic 3D+t TEE of a patient's valve sequence");
   cmd->footer(
-      "Example:\n  mvtwin render-tee patient.h5 --export tee/ --png tee/\n"
+      "Example:\n  mvtwin render-tee observed.h5 --export tee/ --png tee/\n"
       "Renders every frame as an ultrasound-like volume (pyramidal sector from a probe behind the\n"
       "left atrium, speckle, PSF, attenuation, drop-outs, noise) and stores the volumes in the\n"
       "patient file (/images; --out to write a copy instead). --export writes a 3D Slicer\n"
       "sequence (.seq.nrrd); --png writes slices through the end-diastolic and first closed\n"
       "frames, with the true leaflet surface dotted in red (_overlay.png).");
-  auto file = std::make_shared<std::string>();
-  auto out = std::make_shared<std::string>();
-  auto exp = std::make_shared<std::string>();
-  auto png = std::make_shared<std::string>();
-  auto force = std::make_shared<bool>(false);
-  auto o = std::make_shared<detection::TeeRenderOptions>();
-  cmd->add_option("FILE", *file, "patient file (HDF5)")->required();
-  cmd->add_option("--out", *out, "write the patient with its TEE here instead of updating FILE");
-  cmd->add_option("--export", *exp, "directory for the 3D Slicer sequence (<id>_tee.seq.nrrd)");
-  cmd->add_option("--png", *png, "directory for PNG slices");
-  cmd->add_flag("--force", *force, "replace images already in the file, or an existing --out");
-  cmd->add_option("--voxel", o->voxel_mm, "voxel size, mm")->default_val(o->voxel_mm);
-  cmd->add_option("--noise", o->noise, "electronic noise SD (relative to a leaflet's echo)")
-      ->default_val(o->noise);
-  cmd->add_option("--speckle", o->speckle, "speckle, 0 (none) to 1 (fully developed)")
-      ->default_val(o->speckle);
-  cmd->add_option("--dropout", o->dropout_fraction, "fraction of beams with a drop-out")
-      ->default_val(o->dropout_fraction);
-  cmd->add_option("--attenuation", o->attenuation_db_per_mm, "dB/mm after gain compensation")
-      ->default_val(o->attenuation_db_per_mm);
-  cmd->add_option("--probe-jitter", o->probe_jitter_deg,
+  auto a = std::make_shared<RenderTeeArgs>();
+  cmd->add_option("FILE", a->file, "patient file (HDF5)")->required();
+  cmd->add_option("--out", a->out, "write the patient with its TEE here instead of updating FILE");
+  cmd->add_option("--export", a->export_dir,
+                  "directory for the 3D Slicer sequence (<id>_tee.seq.nrrd)");
+  cmd->add_option("--png", a->png, "directory for PNG slices");
+  cmd->add_flag("--force", a->force, "replace images already in the file, or an existing --out");
+  cmd->add_option("--voxel", a->render.voxel_mm, "voxel size, mm")->default_val(a->render.voxel_mm);
+  cmd->add_option("--noise", a->render.noise, "electronic noise SD (relative to a leaflet's echo)")
+      ->default_val(a->render.noise);
+  cmd->add_option("--speckle", a->render.speckle, "speckle, 0 (none) to 1 (fully developed)")
+      ->default_val(a->render.speckle);
+  cmd->add_option("--dropout", a->render.dropout_fraction, "fraction of beams with a drop-out")
+      ->default_val(a->render.dropout_fraction);
+  cmd->add_option("--attenuation", a->render.attenuation_db_per_mm, "dB/mm after gain compensation")
+      ->default_val(a->render.attenuation_db_per_mm);
+  cmd->add_option("--probe-jitter", a->render.probe_jitter_deg,
                   "variation of the probe's pose between patients, degrees (0: the standard view)")
-      ->default_val(o->probe_jitter_deg);
-  cmd->add_option("--seed", o->seed, "random seed (speckle, noise, drop-outs)")
-      ->default_val(o->seed);
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      Patient p = read_patient(*file, true);
-      const fs::path dest = out->empty() ? fs::path(*file) : fs::path(*out);
-      if (!out->empty()) refuse_overwrite_path(dest, *force);
-      if (out->empty() && !p.images.empty() && !*force)
-        throw Error(*file + " already holds " + std::to_string(p.images.size()) +
-                    " image volumes (--force replaces them, --out writes a copy)");
-      const detection::TeeGeometry g = detection::tee_geometry(p.sequence, *o);
-      std::cout << "rendering " << p.sequence.num_frames() << " frames of " << p.id
-                << (p.synthetic ? " [SYNTHETIC]" : "") << ": " << g.grid.size[0] << "^3 voxels of "
-                << o->voxel_mm << " mm, noise " << o->noise << ", speckle " << o->speckle
-                << ", drop-outs " << o->dropout_fraction << ", seed " << o->seed << std::endl;
-      std::vector<ImageVolume> volumes;
-      const auto t0 = std::chrono::steady_clock::now();
-      for (int f = 0; f < p.sequence.num_frames(); ++f) {
-        volumes.push_back(detection::render_tee_frame(p.sequence, f, g, *o));
-        std::cerr << "\r  frame " << f + 1 << "/" << p.sequence.num_frames() << std::flush;
-      }
-      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::cerr << "\n";
-      std::cout << "  " << s << " s (" << s / p.sequence.num_frames() << " s per volume)\n";
-      p.images = volumes;
-      // The file says what made its images (the patient's own provenance stays as it was).
-      std::ostringstream made;
-      made << "; images: synthetic TEE by '" << ctx.command_line << "' (voxel_mm=" << o->voxel_mm
-           << " noise=" << o->noise << " speckle=" << o->speckle
-           << " dropout=" << o->dropout_fraction
-           << " attenuation_db_per_mm=" << o->attenuation_db_per_mm
-           << " probe_jitter_deg=" << o->probe_jitter_deg << " seed=" << o->seed << ", mvtwin "
-           << kVersion << ")";
-      p.provenance.source += made.str();
-      write_patient(dest, p);
-      std::cout << "wrote " << volumes.size() << " volumes into " << dest.string()
-                << " (/images)\n";
-      if (!exp->empty()) {
-        create_output_directory(*exp);
-        const fs::path seq = fs::path(*exp) / (p.id + "_tee.seq.nrrd");
-        write_image_series(seq, volumes);
-        std::cout << "wrote " << seq.string() << " (3D Slicer: drag and drop; a volume sequence)\n";
-      }
-      if (!png->empty()) {
-        create_output_directory(*png);
-        const int scale = std::max(1, static_cast<int>(std::lround(3.0 * o->voxel_mm)));
-        for (int f : {p.sequence.end_diastole, p.sequence.first_closed}) {
-          if (f < 0) continue;
-          const char* phase = f == p.sequence.end_diastole ? "ed" : "closed";
-          for (int axis = 0; axis < 3; ++axis) {
-            for (bool overlay : {false, true}) {
-              const cv::Mat m =
-                  slice_image(volumes[f], axis, overlay ? &p.sequence.frames[f] : nullptr, scale);
-              const std::string name = p.id + "_" + phase + "_" +
-                                       std::string("xyz").substr(axis, 1) +
-                                       (overlay ? "_overlay" : "") + ".png";
-              const fs::path path = fs::path(*png) / name;
-              write_atomically(path, [&](const fs::path& tmp) {
-                if (!cv::imwrite(tmp.string() + ".png", m))
-                  throw Error(path.string() + ": cannot write PNG");
-                fs::rename(tmp.string() + ".png", tmp);
-              });
-            }
-          }
-        }
-        std::cout << "wrote PNG slices to " << *png << "\n";
-      }
-      return 0;
-    };
-  });
+      ->default_val(a->render.probe_jitter_deg);
+  cmd->add_option("--seed", a->render.seed, "random seed (speckle, noise, drop-outs)")
+      ->default_val(a->render.seed);
+  run_on_parse(cmd, ctx, a, run_render_tee);
 }
 
 }  // namespace mvtwin::tools

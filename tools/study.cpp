@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "calibrate.h"
 #include "commands.h"
 #include "exit_codes.h"
 #include "mvtwin/core/error.h"
@@ -45,10 +46,11 @@ void register_cohort(CLI::App* study, Context& ctx) {
   cmd->footer(
       "Examples:\n"
       "  mvtwin study cohort --quick --out cohort_quick/\n"
-      "  mvtwin study cohort --patients 25 --seed 2026 --out cohort25/\n"
+      "  mvtwin study cohort --folder cohort_quick/observed/ --no-calibrate --out folder_study/\n"
+      "  mvtwin study cohort --patients 25 --seed 2026 --out cohort25/   # long\n"
       "  mpirun -np 4 mvtwin study cohort --patients 100 --jobs 2 --out cohort100/\n"
-      "  mvtwin study cohort --folder patients/ --no-calibrate --out real/\n"
-      "  mvtwin study cohort --patients 10 --method ceres --cache obs/ --out cohort10_ceres/\n"
+      "  mvtwin study cohort --patients 10 --method ceres --cache obs/ --out cohort10_ceres/   "
+      "# long\n"
       "Virtual patients are drawn by the rule of every command (mvtwin cohort --seed S makes the\n"
       "same ones); their observed closures (a finer model, --observe-set) are cached in\n"
       "OUT/observed or --cache. Writes OUT/study.json, study.h5, PNG plots and report.md/.html.\n"
@@ -196,9 +198,9 @@ void register_sensitivity(CLI::App* study, Context& ctx) {
       "Annulus and papillary motion, chordae count, stiffness and rest lengths (paper Sec. 4.2)");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study sensitivity --out sensitivity/\n"
       "  mvtwin study sensitivity --quick --out sens_quick/\n"
-      "  mvtwin study sensitivity --patient-file patient.h5 --set ures=40 --out sens_p/\n"
+      "  mvtwin study sensitivity --out sensitivity/   # long\n"
+      "  mvtwin study sensitivity --patient-file patient.h5 --set ures=40 --out sens_p/   # long\n"
       "One patient (index --patient of the virtual cohort --seed, its hidden parameters as the\n"
       "baseline; or --patient-file at the defaults) simulated 11 times: baseline, annulus fixed,\n"
       "papillary tips fixed, 56/20/16/12 marginal chordae, chordae stiffness and rest lengths\n"

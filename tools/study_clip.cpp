@@ -22,10 +22,10 @@ void register_study_clip(CLI::App* study, Context& ctx) {
       "clip", "Residual orifice after the best single clip and pair over a cohort");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study clip --out clip/\n"
       "  mvtwin study clip --quick --out clip_quick/\n"
+      "  mvtwin study clip --out clip/   # long\n"
       "  mpirun -np 4 mvtwin study clip --patients 100 --out clip100/\n"
-      "  mvtwin study clip --folder patients/ --out clip_real/\n"
+      "  mvtwin study clip --folder cohort/ --out clip_folder/   # long\n"
       "Virtual patients (--patients of the cohort --seed, drawn as by every command) are\n"
       "simulated with their hidden parameters; patient files (--folder) at the defaults. Each\n"
       "closes without a clip, with a single clip at every --positions value and with every pair\n"

@@ -23,9 +23,9 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
       "4.1)");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study convergence --out convergence/\n"
       "  mvtwin study convergence --quick --out conv_quick/\n"
-      "  mvtwin study convergence --dt 0.01,0.001 --ures 30,40 --out conv_dt/\n"
+      "  mvtwin study convergence --out convergence/   # long\n"
+      "  mvtwin study convergence --dt 0.01,0.001 --ures 30,40 --out conv_dt/   # long\n"
       "One patient (index --patient of the virtual cohort --seed with its hidden parameters, or\n"
       "--patient-file at the defaults); one factor at a time around the base model (the paper's\n"
       "grid, --set to change it): ures 20,30,40,50, vres 10,20,30, layers 1,2,3, dt 0.1 to\n"

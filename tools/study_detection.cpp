@@ -21,9 +21,10 @@ void register_study_detection(CLI::App* study, Context& ctx) {
       "detection", "Valve detection from synthetic 3D+t TEE on a held-out virtual cohort");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study detection --out detection/                      # about 25 min on 2 cores\n"
       "  mvtwin study detection --quick --out det_quick/\n"
-      "  mvtwin study detection --model detector.yml.gz --test 10 --out det_model/\n"
+      "  mvtwin study detection --model detector.yml.gz --test 1 --voxel 2.5 --truth-set ures=16 "
+      "--truth-set vres=8 --out det_model/   # long: minutes\n"
+      "  mvtwin study detection --out detection/   # long: about 25 min on 2 cores\n"
       "Two disjoint virtual cohorts of --seed (pathologies in turn): their closing frames are\n"
       "simulated without noise (--truth-set; the truth to detect) and every frame is rendered as\n"
       "synthetic TEE (--voxel, --probe-jitter, --speckle, --dropout). A detector is trained on\n"

@@ -19,14 +19,14 @@ void register_study_robustness(CLI::App* study, Context& ctx) {
       "robustness", "Randomized stress test of the simulator: converged, clean failure or crash");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study robustness --out robustness/\n"
-      "  mvtwin study robustness --runs 1000 --out robustness1000/\n"
       "  mvtwin study robustness --quick --out rob_quick/\n"
+      "  mvtwin study robustness --out robustness/   # long\n"
+      "  mvtwin study robustness --runs 1000 --out robustness1000/   # long\n"
       "Case i is patient i of the virtual cohort --seed with extreme inputs drawn from its own\n"
       "generator: rest-length factors 0.5-1.5, chordae stiffness and leaflet moduli x0.2-5, peak\n"
       "pressure 0-200 mmHg, dt 0.001-0.1 s, noisy or degenerate anatomy in a third of the cases.\n"
       "Counts converged runs, clean failures (a status with a reason), crashes and non-finite\n"
-      "outputs; exits with 5 when there is a crash or a non-finite output. Resumable, and a "
+      "outputs; exits with 3 when there is a crash or a non-finite output. Resumable, and a "
       "larger\n"
       "--runs in the same folder adds cases without redoing the others.");
   struct Args {

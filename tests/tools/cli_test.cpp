@@ -60,17 +60,6 @@ class Cli : public ::testing::Test {
   fs::path dir_;
 };
 
-TEST_F(Cli, EveryCommandHelpShowsARealInvocation) {
-  for (const char* c : {"phantom", "cohort", "info", "export", "import", "distance", "export-model",
-                        "simulate", "calibrate", "clip", "study cohort", "study sensitivity",
-                        "study convergence", "study clip", "study robustness", "study detection"}) {
-    const CmdResult r = run(std::string(c) + " --help");
-    EXPECT_EQ(r.code, 0) << c;
-    EXPECT_NE(r.out.find(std::string("mvtwin ") + c + " "), std::string::npos) << c << ":\n"
-                                                                               << r.out;
-  }
-}
-
 TEST_F(Cli, PhantomInfoExport) {
   CmdResult r = run("phantom --seed 4 --out " + path("p.h5"));
   ASSERT_EQ(r.code, 0) << r.err;

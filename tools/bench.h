@@ -1,0 +1,41 @@
+#pragma once
+// mvtwin bench closure | solvers: timing figures with the error they cost (and bench import).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "command.h"
+
+namespace mvtwin::tools {
+
+/// The converged reference of bench closure: a finer mesh, fixed steps 100x smaller than the
+/// paper's, linear systems solved to 1e-4 (the error against the reference does not move
+/// between 0.1 and 1e-3 at the paper's step: docs/forward-status.md).
+inline const std::vector<std::string> kReferenceSettings = {
+    "ures=40", "vres=40", "dt=0.0001", "step_error_mm=0", "pcg_tolerance=1e-4"};
+
+struct BenchClosureArgs : CommandArgs {
+  std::string json_path;
+  std::string ref_file;
+  std::vector<std::string> sets;
+  std::vector<std::string> ref_sets = kReferenceSettings;
+  unsigned seed = 1;
+  int repeat = 3;
+};
+
+int run_bench_closure(const BenchClosureArgs& args);
+
+struct BenchSolversArgs : CommandArgs {
+  std::string json_path;
+  std::string ref_file;
+  std::vector<std::string> sets;
+  std::vector<std::string> ref_sets = kReferenceSettings;
+  unsigned seed = 1;
+};
+
+int run_bench_solvers(const BenchSolversArgs& args);
+
+/// Registers the bench command with closure, solvers and import.
+void register_bench(CLI::App& app, Context& ctx);
+
+}  // namespace mvtwin::tools

@@ -1,0 +1,28 @@
+#pragma once
+// mvtwin clip: the closure after an edge-to-edge clip, at given sites or the best ones found.
+#include <string>
+#include <vector>
+
+#include "command.h"
+
+namespace mvtwin::tools {
+
+struct ClipArgs : CommandArgs {
+  std::string file;
+  std::string params;
+  std::string at;
+  std::string out;
+  std::string vtk;
+  bool suggest = false;
+  bool pairs = false;
+  bool force = false;
+  int jobs = 2;
+  std::vector<std::string> sets;
+  bool use_detected = false;
+  bool true_params = false;
+};
+
+int run_clip(const ClipArgs& args);
+void register_clip(CLI::App& app, Context& ctx);
+
+}  // namespace mvtwin::tools

@@ -1,0 +1,47 @@
+// What every command shares (tools/command.h).
+#include "command.h"
+
+#include <iostream>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/version.h"
+#include "report.h"
+
+namespace mvtwin::tools {
+namespace fs = std::filesystem;
+
+nlohmann::json provenance(const std::string& command_line) {
+  return {
+      {"mvtwin_version", kVersion}, {"command", command_line}, {"created_utc", utc_now_iso8601()}};
+}
+
+Patient read_patient_for_run(const fs::path& path, bool use_detected) {
+  Patient p = read_patient(path, false);
+  if (use_detected) {
+    if (!p.detected)
+      throw Error(path.string() + " has no detected sequence (run mvtwin detect first)");
+    // Detection finds the leaflets, not torn chordae: those stay the patient's known anatomy.
+    const std::vector<ChordaeRupture> ruptures = p.sequence.ruptured_chordae;
+    p.sequence = *p.detected;
+    if (p.sequence.ruptured_chordae.empty()) p.sequence.ruptured_chordae = ruptures;
+    p.provenance.source.append("; sequence detected from images (")
+        .append(p.detected_by)
+        .append(")");
+  }
+  print_assumed(p, std::cout);
+  return p;
+}
+
+void refuse_overwrite(const fs::path& p, bool force) {
+  if (fs::exists(p) && !force) {
+    throw Error(p.string() + ": already exists (use --force to replace it)");
+  }
+}
+
+void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
+  cmd->add_option("--ures", ures, "grid points around the annulus (even, >= 8)")->default_val(30);
+  cmd->add_option("--vres", vres, "grid points from annulus to free edge (>= 3)")->default_val(30);
+}
+
+}  // namespace mvtwin::tools
