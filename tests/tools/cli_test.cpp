@@ -81,6 +81,13 @@ TEST_F(Cli, PhantomInfoExport) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("already exists"), std::string::npos);
   EXPECT_EQ(mvtwin::read_patient(path("p.h5")).provenance.seed, 4u);
+  // --quick simulates the closing frames on the coarse model, and says so.
+  r = run("phantom --seed 4 --simulate-closure --quick --out " + path("quick.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("ures 20, vres 10, 1 layers, dt 0.01 s"), std::string::npos) << r.out;
+  const auto quick = mvtwin::read_patient(path("quick.h5"));
+  ASSERT_GE(quick.sequence.first_closed, 0);
+  EXPECT_TRUE(quick.sequence.frames[quick.sequence.first_closed].la_surface.has_value());
   // Same seed, same result.
   ASSERT_EQ(run("phantom --seed 4 --out " + path("q.h5")).code, 0);
   const auto a = mvtwin::read_patient(path("p.h5")), b = mvtwin::read_patient(path("q.h5"));

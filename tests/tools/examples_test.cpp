@@ -24,8 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Example {
-  std::string command;  ///< "simulate", "study cohort"
-  std::string line;     ///< "mvtwin simulate patient.h5 --out closed.h5"
+  std::string line;  ///< "mvtwin simulate patient.h5 --out closed.h5"
   bool long_run = false;
 };
 
@@ -54,7 +53,7 @@ std::vector<std::string> split_words(const std::string& line) {
 
 /// The example lines of a footer: lines "  mvtwin ..." (or "  mpirun -np N mvtwin ...", run
 /// as one process), a trailing "# comment" dropped; "# long..." marks a long run.
-std::vector<Example> examples_in(const std::string& command, const std::string& footer) {
+std::vector<Example> examples_in(const std::string& footer) {
   std::vector<Example> out;
   std::istringstream lines(footer);
   for (std::string l; std::getline(lines, l);) {
@@ -74,7 +73,7 @@ std::vector<Example> examples_in(const std::string& command, const std::string& 
       text = text.substr(0, hash);
     }
     while (!text.empty() && text.back() == ' ') text.pop_back();
-    out.push_back({command, text, long_run});
+    out.push_back({text, long_run});
   }
   return out;
 }
@@ -85,11 +84,21 @@ void collect(const CLI::App* app, const std::string& prefix, std::vector<std::st
     const std::string name = prefix.empty() ? sub->get_name() : prefix + " " + sub->get_name();
     if (sub->get_subcommands({}).empty()) {
       leaves->push_back(name);
-      (*examples)[name] = examples_in(name, sub->get_footer());
+      (*examples)[name] = examples_in(sub->get_footer());
     } else {
       collect(sub, name, leaves, examples);
     }
   }
+}
+
+/// Every leaf command of mvtwin (into *leaves) with the examples of its --help.
+std::map<std::string, std::vector<Example>> help_examples(std::vector<std::string>* leaves) {
+  CLI::App app{"mvtwin"};
+  mvtwin::tools::Context ctx;
+  mvtwin::tools::add_commands(app, ctx);
+  std::map<std::string, std::vector<Example>> examples;
+  collect(&app, "", leaves, &examples);
+  return examples;
 }
 
 /// Parses `line` with a fresh mvtwin application; runs the command unless `parse_only`.
@@ -146,17 +155,13 @@ const std::vector<std::string> kSession = {"phantom",
                                            "study detection"};
 
 TEST(HelpExamples, EveryCommandHasExamplesAndTheSessionListsEveryCommand) {
-  CLI::App app{"mvtwin"};
-  mvtwin::tools::Context ctx;
-  mvtwin::tools::add_commands(app, ctx);
   std::vector<std::string> leaves;
-  std::map<std::string, std::vector<Example>> examples;
-  collect(&app, "", &leaves, &examples);
+  const std::map<std::string, std::vector<Example>> examples = help_examples(&leaves);
   EXPECT_EQ(std::set<std::string>(leaves.begin(), leaves.end()),
             std::set<std::string>(kSession.begin(), kSession.end()))
       << "a command is missing from kSession (or kSession names one that is gone)";
   for (const std::string& c : leaves) {
-    const auto& ex = examples[c];
+    const auto& ex = examples.at(c);
     EXPECT_TRUE(std::any_of(ex.begin(), ex.end(), [](const Example& e) { return !e.long_run; }))
         << "mvtwin " << c << " --help shows no example that the tests can run";
     for (const Example& e : ex)
@@ -169,12 +174,8 @@ TEST(HelpExamples, EveryExampleRunsAsWritten) {
   GTEST_SKIP() << "the examples simulate, calibrate, train and run studies: too long under "
                   "AddressSanitizer (the other tests run the same code)";
 #endif
-  CLI::App app{"mvtwin"};
-  mvtwin::tools::Context ctx;
-  mvtwin::tools::add_commands(app, ctx);
   std::vector<std::string> leaves;
-  std::map<std::string, std::vector<Example>> examples;
-  collect(&app, "", &leaves, &examples);
+  const std::map<std::string, std::vector<Example>> examples = help_examples(&leaves);
 
   const fs::path home = fs::current_path();
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_examples_" + std::to_string(getpid()));
@@ -183,7 +184,7 @@ TEST(HelpExamples, EveryExampleRunsAsWritten) {
   fs::current_path(dir);
   int ran = 0, parsed = 0;
   for (const std::string& c : kSession) {
-    for (const Example& e : examples[c]) {
+    for (const Example& e : examples.at(c)) {
       SCOPED_TRACE(e.line);
       std::cout << "[example] " << e.line << (e.long_run ? "   (long: parsed only)" : "")
                 << std::endl;
