@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <set>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -28,14 +29,20 @@ struct Context {
 /// The base of every command's arguments: the command line, recorded in what it writes.
 struct CommandArgs {
   std::string command_line;
+  /// The options given on the command line (long names, "--patients"): for commands whose
+  /// --quick size keeps its own values unless an option is given.
+  std::set<std::string> given;
 };
 
 /// When `cmd` is the chosen command, ctx.run becomes `run(*args)` (with the command line).
 template <class Args>
 void run_on_parse(CLI::App* cmd, Context& ctx, std::shared_ptr<Args> args,
                   int (*run)(const Args&)) {
-  cmd->callback([&ctx, args, run] {
+  cmd->callback([cmd, &ctx, args, run] {
     args->command_line = ctx.command_line;
+    for (const CLI::Option* o : cmd->get_options()) {
+      if (o->count() > 0) args->given.insert(o->get_name());
+    }
     ctx.run = [args, run] { return run(*args); };
   });
 }

@@ -1,5 +1,5 @@
 #pragma once
-// What the `mvtwin study NAME` commands share (tools/study.cpp), and one registration per study.
+// What the `mvtwin study NAME` commands share (tools/study.cpp); each study is tools/study_NAME.h.
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -18,14 +18,5 @@ studies::StudyProgress progress_printer(const studies::WorkPool& pool);
 /// dropping it.
 void apply_model_setting(const std::string& assignment, forward::ClosureOptions* options,
                          const std::string& why);
-
-/// mvtwin study convergence (tools/study_convergence.cpp).
-void register_study_convergence(CLI::App* study, Context& ctx);
-/// mvtwin study clip (tools/study_clip.cpp).
-void register_study_clip(CLI::App* study, Context& ctx);
-/// mvtwin study robustness (tools/study_robustness.cpp).
-void register_study_robustness(CLI::App* study, Context& ctx);
-/// mvtwin study detection (tools/study_detection.cpp).
-void register_study_detection(CLI::App* study, Context& ctx);
 
 }  // namespace mvtwin::tools

@@ -13,8 +13,49 @@
 #include "mvtwin/studies/convergence_study.h"
 #include "mvtwin/studies/report.h"
 #include "study_commands.h"
+#include "study_convergence.h"
 
 namespace mvtwin::tools {
+
+int run_study_convergence(const StudyConvergenceArgs& args) {
+  studies::ConvergenceStudyOptions o;
+  if (args.quick) o = studies::ConvergenceStudyOptions::quick();
+  o.out = args.out;
+  o.seed = args.seed;
+  o.patient = args.patient;
+  o.patient_file = args.patient_file;
+  o.jobs = args.jobs;
+  o.command = args.command_line;
+  if (!args.ures.empty()) o.ures = args.ures;
+  if (!args.vres.empty()) o.vres = args.vres;
+  if (!args.layers.empty()) o.layers = args.layers;
+  if (!args.dt.empty()) o.dt = args.dt;
+  for (const auto& s : args.sets)
+    apply_model_setting(s, &o.model,
+                        "--set: the study simulates the patient with its own parameters");
+  std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
+  o.progress = progress_printer(*pool);
+  const studies::ConvergenceStudyResult r = studies::run_convergence_study(o, *pool);
+  if (!pool->is_root()) return 0;
+  std::printf("%-7s %-18s %8s %7s %7s %14s %9s %9s\n", "factor", "value", "wall_s", "steps", "dofs",
+              "error mm", "p95 mm", "max mm");
+  int failed = 0;
+  for (const auto& k : r.runs) {
+    if (k.status != "ok") {
+      ++failed;
+      std::printf("%-7s %-18s failed: %s\n", k.factor.c_str(), k.value.c_str(), k.reason.c_str());
+      continue;
+    }
+    std::printf("%-7s %-18s %8.1f %7d %7d %14s %9.3f %9.3f\n", k.factor.c_str(),
+                (k.value + (k.reference ? " (reference)" : "")).c_str(), k.wall_s, k.steps, k.dofs,
+                studies::mean_sd(k.error_mean_mm, k.error_sd_mm, 3).c_str(), k.error_p95_mm,
+                k.error_max_mm);
+  }
+  std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; "
+            << r.simulations << " simulations; wrote " << (o.out / "report.md").string() << " ("
+            << r.wall_s << " s)\n";
+  return failed ? int{kExitFailed} : int{kExitOk};
+}
 
 void register_study_convergence(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
@@ -32,16 +73,7 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
       "1e-4 s. The last value of each series is its reference. Writes the errors next to the\n"
       "paper's, a plot per series, the time-against-error (Pareto) plot, study.json, study.h5\n"
       "and report.md/.html. Resumable; the base model is simulated once for every series.");
-  struct Args {
-    std::string out, patient_file;
-    std::uint64_t seed = 2026;
-    int patient = 0, jobs = 2;
-    bool quick = false;
-    std::vector<std::string> sets;
-    std::vector<int> ures, vres, layers;
-    std::vector<double> dt;
-  };
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<StudyConvergenceArgs>();
   cmd->add_option("--out", a->out, "the study folder")->required();
   cmd->add_option("--seed", a->seed, "cohort seed of the virtual patient")->default_val(2026);
   cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")
@@ -59,48 +91,7 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
   cmd->add_option("--dt", a->dt, "time-step series, s, coarse to fine")->delimiter(',');
   cmd->add_flag("--quick", a->quick,
                 "the test size: a 12 x 8 base at dt 0.02 s, two or three values per series");
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      studies::ConvergenceStudyOptions o;
-      if (a->quick) o = studies::ConvergenceStudyOptions::quick();
-      o.out = a->out;
-      o.seed = a->seed;
-      o.patient = a->patient;
-      o.patient_file = a->patient_file;
-      o.jobs = a->jobs;
-      o.command = ctx.command_line;
-      if (!a->ures.empty()) o.ures = a->ures;
-      if (!a->vres.empty()) o.vres = a->vres;
-      if (!a->layers.empty()) o.layers = a->layers;
-      if (!a->dt.empty()) o.dt = a->dt;
-      for (const auto& s : a->sets)
-        apply_model_setting(s, &o.model,
-                            "--set: the study simulates the patient with its own parameters");
-      std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
-      o.progress = progress_printer(*pool);
-      const studies::ConvergenceStudyResult r = studies::run_convergence_study(o, *pool);
-      if (!pool->is_root()) return 0;
-      std::printf("%-7s %-18s %8s %7s %7s %14s %9s %9s\n", "factor", "value", "wall_s", "steps",
-                  "dofs", "error mm", "p95 mm", "max mm");
-      int failed = 0;
-      for (const auto& k : r.runs) {
-        if (k.status != "ok") {
-          ++failed;
-          std::printf("%-7s %-18s failed: %s\n", k.factor.c_str(), k.value.c_str(),
-                      k.reason.c_str());
-          continue;
-        }
-        std::printf("%-7s %-18s %8.1f %7d %7d %14s %9.3f %9.3f\n", k.factor.c_str(),
-                    (k.value + (k.reference ? " (reference)" : "")).c_str(), k.wall_s, k.steps,
-                    k.dofs, studies::mean_sd(k.error_mean_mm, k.error_sd_mm, 3).c_str(),
-                    k.error_p95_mm, k.error_max_mm);
-      }
-      std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; "
-                << r.simulations << " simulations; wrote " << (o.out / "report.md").string() << " ("
-                << r.wall_s << " s)\n";
-      return failed ? int{kExitFailed} : int{kExitOk};
-    };
-  });
+  run_on_parse(cmd, ctx, a, run_study_convergence);
 }
 
 }  // namespace mvtwin::tools

@@ -13,8 +13,64 @@
 #include "mvtwin/studies/detection_study.h"
 #include "mvtwin/studies/report.h"
 #include "study_commands.h"
+#include "study_detection.h"
 
 namespace mvtwin::tools {
+
+int run_study_detection(const StudyDetectionArgs& args) {
+  studies::DetectionStudyOptions o;
+  if (args.quick) o = studies::DetectionStudyOptions::quick();
+  o.out = args.out;
+  o.cache = args.cache;
+  o.model_file = args.model;
+  o.seed = args.seed;
+  o.jobs = args.jobs;
+  if (!args.quick || args.given.count("--train")) o.train = args.train;
+  if (!args.quick || args.given.count("--test")) o.test = args.test;
+  if (args.given.count("--noise-levels")) o.noise_levels = args.levels;
+  if (args.given.count("--train-noise")) o.train_noise = args.train_noise;
+  // Flags given replace the defaults (or the quick size's).
+  const auto& given_values = args.defaults;
+  auto given = [&](const char* flag) { return args.given.count(flag) > 0; };
+  if (given("--voxel")) o.render.voxel_mm = given_values.render.voxel_mm;
+  if (given("--probe-jitter")) o.render.probe_jitter_deg = given_values.render.probe_jitter_deg;
+  if (given("--speckle")) o.render.speckle = given_values.render.speckle;
+  if (given("--dropout")) o.render.dropout_fraction = given_values.render.dropout_fraction;
+  if (given("--trees")) o.detector.trees = given_values.detector.trees;
+  if (given("--samples")) o.detector.samples_per_volume = given_values.detector.samples_per_volume;
+  // The truth model takes model options only: a patient parameter would be dropped.
+  forward::ClosureOptions scratch;
+  for (const auto& s : args.truth_sets)
+    apply_model_setting(s, &scratch, "--truth-set: the truth uses each patient's own");
+  for (const auto& s : args.truth_sets) o.truth_sets.push_back(s);
+  o.command = args.command_line;
+  std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
+  o.progress = progress_printer(*pool);
+  const studies::DetectionStudyResult r = studies::run_detection_study(o, *pool);
+  if (!pool->is_root()) return 0;
+  std::printf("%-8s %8s %6s %20s %9s %9s %9s %13s %10s\n", "noise", "patients", "frames",
+              "surface mm (SD)", "open", "closing", "closed", "papillary mm", "s/volume");
+  auto num = [](const nlohmann::json& j, const char* k) {
+    return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
+  };
+  for (const auto& c : r.curve) {
+    auto phase = [&](const char* p) {
+      return c["by_phase"].contains(p) ? num(c["by_phase"][p], "error_mean_mm") : std::nan("");
+    };
+    std::printf("%-8g %8d %6d %20s %9.2f %9.2f %9.2f %13.2f %10.2f\n", c["noise"].get<double>(),
+                c["patients"].get<int>(), c["frames"].get<int>(),
+                studies::mean_sd(num(c, "error_mean_mm"), num(c, "error_sd_mm")).c_str(),
+                phase("open"), phase("closing"), phase("closed"), num(c, "papillary_error_mm"),
+                num(c, "s_per_volume"));
+  }
+  std::printf("paper (real TEE, 200 volumes)   %20s %42s %10s   [these: SYNTHETIC]\n",
+              "2.75 ± 0.86", "", "4.8");
+  int failed = 0;
+  for (const auto& run : r.runs) failed += !run.ok;
+  std::cout << "wrote " << (o.out / "report.md").string() << ", study.json, study.h5 (" << r.wall_s
+            << " s)\n";
+  return failed > 0 ? int{kExitFailed} : int{kExitOk};
+}
 
 void register_study_detection(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
@@ -33,16 +89,7 @@ void register_study_detection(CLI::App* study, Context& ctx) {
       "(the first is the headline). Writes OUT/study.json, study.h5 (one row per frame), PNG\n"
       "plots and report.md/.html. Truths and the detector are cached in OUT/cache or --cache.\n"
       "Resumable; more --test patients or noise levels extend a finished study.");
-  struct Args {
-    std::string out, cache, model;
-    int train = 12, test = 6, jobs = 2;
-    std::uint64_t seed = 3030;
-    bool quick = false;
-    std::vector<double> levels, train_noise;
-    std::vector<std::string> truth_sets;
-    studies::DetectionStudyOptions defaults;
-  };
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<StudyDetectionArgs>();
   auto& d = a->defaults;
   cmd->add_option("--out", a->out, "the study folder")->required();
   cmd->add_option("--cache", a->cache, "truths and trained detectors (default OUT/cache)");
@@ -82,63 +129,7 @@ void register_study_detection(CLI::App* study, Context& ctx) {
       ->default_val(d.detector.samples_per_volume);
   cmd->add_flag("--quick", a->quick,
                 "the test size: 3 training and 1 test patient, coarse images, small forests");
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      studies::DetectionStudyOptions o;
-      if (a->quick) o = studies::DetectionStudyOptions::quick();
-      o.out = a->out;
-      o.cache = a->cache;
-      o.model_file = a->model;
-      o.seed = a->seed;
-      o.jobs = a->jobs;
-      if (!a->quick || cmd->count("--train")) o.train = a->train;
-      if (!a->quick || cmd->count("--test")) o.test = a->test;
-      if (cmd->count("--noise-levels")) o.noise_levels = a->levels;
-      if (cmd->count("--train-noise")) o.train_noise = a->train_noise;
-      // Flags given replace the defaults (or the quick size's).
-      const auto& given_values = a->defaults;
-      auto given = [&](const char* flag) { return cmd->count(flag) > 0; };
-      if (given("--voxel")) o.render.voxel_mm = given_values.render.voxel_mm;
-      if (given("--probe-jitter")) o.render.probe_jitter_deg = given_values.render.probe_jitter_deg;
-      if (given("--speckle")) o.render.speckle = given_values.render.speckle;
-      if (given("--dropout")) o.render.dropout_fraction = given_values.render.dropout_fraction;
-      if (given("--trees")) o.detector.trees = given_values.detector.trees;
-      if (given("--samples"))
-        o.detector.samples_per_volume = given_values.detector.samples_per_volume;
-      // The truth model takes model options only: a patient parameter would be dropped.
-      forward::ClosureOptions scratch;
-      for (const auto& s : a->truth_sets)
-        apply_model_setting(s, &scratch, "--truth-set: the truth uses each patient's own");
-      for (const auto& s : a->truth_sets) o.truth_sets.push_back(s);
-      o.command = ctx.command_line;
-      std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
-      o.progress = progress_printer(*pool);
-      const studies::DetectionStudyResult r = studies::run_detection_study(o, *pool);
-      if (!pool->is_root()) return 0;
-      std::printf("%-8s %8s %6s %20s %9s %9s %9s %13s %10s\n", "noise", "patients", "frames",
-                  "surface mm (SD)", "open", "closing", "closed", "papillary mm", "s/volume");
-      auto num = [](const nlohmann::json& j, const char* k) {
-        return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
-      };
-      for (const auto& c : r.curve) {
-        auto phase = [&](const char* p) {
-          return c["by_phase"].contains(p) ? num(c["by_phase"][p], "error_mean_mm") : std::nan("");
-        };
-        std::printf("%-8g %8d %6d %20s %9.2f %9.2f %9.2f %13.2f %10.2f\n", c["noise"].get<double>(),
-                    c["patients"].get<int>(), c["frames"].get<int>(),
-                    studies::mean_sd(num(c, "error_mean_mm"), num(c, "error_sd_mm")).c_str(),
-                    phase("open"), phase("closing"), phase("closed"), num(c, "papillary_error_mm"),
-                    num(c, "s_per_volume"));
-      }
-      std::printf("paper (real TEE, 200 volumes)   %20s %42s %10s   [these: SYNTHETIC]\n",
-                  "2.75 ± 0.86", "", "4.8");
-      int failed = 0;
-      for (const auto& run : r.runs) failed += !run.ok;
-      std::cout << "wrote " << (o.out / "report.md").string() << ", study.json, study.h5 ("
-                << r.wall_s << " s)\n";
-      return failed > 0 ? int{kExitFailed} : int{kExitOk};
-    };
-  });
+  run_on_parse(cmd, ctx, a, run_study_detection);
 }
 
 }  // namespace mvtwin::tools

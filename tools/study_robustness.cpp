@@ -11,8 +11,29 @@
 #include "exit_codes.h"
 #include "mvtwin/studies/robustness_study.h"
 #include "study_commands.h"
+#include "study_robustness.h"
 
 namespace mvtwin::tools {
+
+int run_study_robustness(const StudyRobustnessArgs& args) {
+  studies::RobustnessStudyOptions o;
+  if (args.quick) o = studies::RobustnessStudyOptions::quick();
+  o.out = args.out;
+  if (!args.quick || args.given.count("--runs")) o.runs = args.runs;
+  o.seed = args.seed;
+  o.jobs = args.jobs;
+  o.command = args.command_line;
+  for (const auto& s : args.sets)
+    apply_model_setting(s, &o.model, "--set: every case draws its own parameters");
+  std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
+  o.progress = progress_printer(*pool);
+  const studies::RobustnessStudyResult r = studies::run_robustness_study(o, *pool);
+  if (!pool->is_root()) return 0;
+  std::printf("%zu cases: %d converged, %d clean failures, %d crashes, %d non-finite outputs\n",
+              r.cases.size(), r.converged, r.clean_failures, r.crashes, r.nonfinite);
+  std::cout << "wrote " << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
+  return r.crashes + r.nonfinite > 0 ? int{kExitInternal} : int{kExitOk};
+}
 
 void register_study_robustness(CLI::App* study, Context& ctx) {
   auto* cmd = study->add_subcommand(
@@ -29,14 +50,7 @@ void register_study_robustness(CLI::App* study, Context& ctx) {
       "outputs; exits with 3 when there is a crash or a non-finite output. Resumable, and a "
       "larger\n"
       "--runs in the same folder adds cases without redoing the others.");
-  struct Args {
-    std::string out;
-    int runs = 200, jobs = 2;
-    std::uint64_t seed = 7;
-    bool quick = false;
-    std::vector<std::string> sets;
-  };
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<StudyRobustnessArgs>();
   cmd->add_option("--out", a->out, "the study folder")->required();
   cmd->add_option("--runs", a->runs, "randomized cases")
       ->default_val(200)
@@ -47,27 +61,7 @@ void register_study_robustness(CLI::App* study, Context& ctx) {
       ->check(CLI::Range(1, 256));
   cmd->add_option("--set", a->sets, "name=value for the model (default ures=20 vres=10)");
   cmd->add_flag("--quick", a->quick, "the test size: 12 cases on a 12 x 8 model");
-  cmd->callback([=, &ctx] {
-    ctx.run = [=, &ctx] {
-      studies::RobustnessStudyOptions o;
-      if (a->quick) o = studies::RobustnessStudyOptions::quick();
-      o.out = a->out;
-      if (!a->quick || cmd->count("--runs")) o.runs = a->runs;
-      o.seed = a->seed;
-      o.jobs = a->jobs;
-      o.command = ctx.command_line;
-      for (const auto& s : a->sets)
-        apply_model_setting(s, &o.model, "--set: every case draws its own parameters");
-      std::unique_ptr<studies::WorkPool> pool = studies::make_pool_from_environment();
-      o.progress = progress_printer(*pool);
-      const studies::RobustnessStudyResult r = studies::run_robustness_study(o, *pool);
-      if (!pool->is_root()) return 0;
-      std::printf("%zu cases: %d converged, %d clean failures, %d crashes, %d non-finite outputs\n",
-                  r.cases.size(), r.converged, r.clean_failures, r.crashes, r.nonfinite);
-      std::cout << "wrote " << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
-      return r.crashes + r.nonfinite > 0 ? int{kExitInternal} : int{kExitOk};
-    };
-  });
+  run_on_parse(cmd, ctx, a, run_study_robustness);
 }
 
 }  // namespace mvtwin::tools
