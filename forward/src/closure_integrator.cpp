@@ -432,9 +432,12 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   sum.pcg_fallbacks = ls.pcg_fallbacks;
   sum.unconverged_solves = ls.unconverged;
   sum.factorize_s = ls.factorize_s;
+  sum.precondition_s = ls.apply_s;
+  sum.analyze_s = ls.analyze_s;
   sum.analyses = ls.analyses;
   sum.factorizations = ls.factorizations;
   sum.pcg_iterations = ls.pcg_iterations;
+  sum.preconditioner_applications = ls.applications;
   if (contact_) {
     sum.contact_searches = contact_->searches();
     sum.contact_reused = contact_->reused();

@@ -64,9 +64,11 @@ std::string ClosureSummary::brief_report() const {
      << "; " << steps << " steps (" << halvings << " halvings, " << rejected << " redone smaller, "
      << crossings << " crossings caught, " << newton_iterations << " Newton iterations), " << dofs
      << " dofs, " << elements << " elements; " << wall_s << " s (assembly " << assembly_s
-     << ", solve " << solve_s << ", contact " << contact_s << ", other " << other_s
-     << "); linear solver: " << factorizations << " factorizations, " << analyses << " analyses, "
-     << pcg_iterations << " PCG iterations, " << unconverged_solves
+     << ", solve " << solve_s << " of which factorizing " << factorize_s << " (analysis "
+     << analyze_s << ") and preconditioning " << precondition_s << ", contact " << contact_s
+     << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
+     << analyses << " analyses, " << pcg_iterations << " PCG iterations, "
+     << preconditioner_applications << " preconditioner applications, " << unconverged_solves
      << " unconverged; contact: " << contacts << " pairs at the end (max " << max_contacts
      << ", closest " << min_contact_distance_mm << " mm), " << contact_searches << " searches, "
      << contact_reused << " reused the candidate list; " << interpenetrating_nodes << " of "
@@ -178,6 +180,9 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"wall_s", s.wall_s},
                  {"assembly_s", s.assembly_s},
                  {"solve_s", s.solve_s},
+                 {"factorize_s", s.factorize_s},
+                 {"precondition_s", s.precondition_s},
+                 {"analyze_s", s.analyze_s},
                  {"contact_s", s.contact_s},
                  {"other_s", s.other_s},
                  {"contacts", s.contacts},
@@ -186,6 +191,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"min_contact_distance_mm", s.min_contact_distance_mm},
                  {"factorizations", s.factorizations},
                  {"pcg_iterations", s.pcg_iterations},
+                 {"preconditioner_applications", s.preconditioner_applications},
                  {"unconverged_solves", s.unconverged_solves},
                  {"final_update_norm", s.final_update_norm},
                  {"interpenetrating_nodes", s.interpenetrating_nodes},

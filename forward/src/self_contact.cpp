@@ -11,6 +11,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_triangle_distance.h"
 #include "mvtwin/core/units.h"
+#include "uniform_grid.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -26,17 +27,6 @@ Eigen::Vector3d barycentric(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
   const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
   return {1.0 - v - w, v, w};
 }
-
-struct CellKey {
-  static std::int64_t of_index(std::int64_t i, std::int64_t j, std::int64_t k) {
-    return ((i & 0x1fffff) << 42) | ((j & 0x1fffff) << 21) | (k & 0x1fffff);
-  }
-  static std::int64_t of(const Eigen::Vector3d& p, double h) {
-    return of_index(static_cast<std::int64_t>(std::floor(p.x() / h)),
-                    static_cast<std::int64_t>(std::floor(p.y() / h)),
-                    static_cast<std::int64_t>(std::floor(p.z() / h)));
-  }
-};
 
 /// The four nodes of a pair and the weights that map their motion to the vertex's motion
 /// relative to its closest point on the triangle (J = [I, -w0 I, -w1 I, -w2 I]).
@@ -176,50 +166,68 @@ SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double st
       (!s_.triangle_group.empty() && s_.triangle_group.size() != s_.triangles.size())) {
     throw Error("self-contact: surface arrays differ in size");
   }
+  for (const auto& tp : s_.triangle_plane) {
+    Eigen::Vector2d corner[3];
+    for (int k = 0; k < 3; ++k) {
+      corner[k] = s_.plane.row(tp[k]).transpose();
+      if (k > 0 && s_.period > 0)
+        corner[k].x() -= s_.period * std::round((corner[k].x() - corner[0].x()) / s_.period);
+    }
+    const Eigen::Vector2d centre = (corner[0] + corner[1] + corner[2]) / 3.0;
+    double radius = 0.0;
+    for (const Eigen::Vector2d& c : corner) radius = std::max(radius, (c - centre).norm());
+    const double slack = 1e-9 * (1.0 + opt_.exclusion_mm);
+    const double inside = opt_.exclusion_mm - radius - slack,
+                 outside = opt_.exclusion_mm + radius + slack;
+    triangle_centre_.push_back(centre);
+    triangle_inside2_.push_back(inside > 0 ? inside * inside : -1.0);
+    triangle_outside2_.push_back(outside * outside);
+  }
+  for (int vp : s_.vertex_plane) vertex_uv_.push_back(s_.plane.row(vp).transpose());
+}
+
+bool SelfContact::excluded(int i, int t) const {
+  const Eigen::Vector2d& pv = vertex_uv_[i];
+  auto plane_distance2 = [&](const Eigen::Vector2d& q) {
+    double dx = q.x() - pv.x();
+    if (s_.period > 0 && std::abs(dx) > 0.5 * s_.period)
+      dx -= s_.period * std::round(dx / s_.period);
+    const double dy = q.y() - pv.y();
+    return dx * dx + dy * dy;
+  };
+  // The corners lie within the radius of the centre (distances on the unrolled cylinder obey
+  // the triangle inequality): most pairs are decided here, the rest corner by corner.
+  const double centre2 = plane_distance2(triangle_centre_[t]);
+  if (centre2 < triangle_inside2_[t]) return true;
+  if (centre2 > triangle_outside2_[t]) return false;
+  const double limit2 = opt_.exclusion_mm * opt_.exclusion_mm;
+  for (int k = 0; k < 3; ++k) {
+    if (plane_distance2(s_.plane.row(s_.triangle_plane[t][k]).transpose()) < limit2) return true;
+  }
+  return false;
 }
 
 void SelfContact::full_search(const Eigen::VectorXd& x) {
   ++searches_;
   candidates_.clear();
   const double reach = opt_.alarm_mm + opt_.margin_mm;
-  const double h = reach;
-  // Vertices binned once in cells of size `reach` (sorted by cell); each triangle visits the
-  // cells its box, grown by `reach`, overlaps.
-  std::vector<std::pair<std::int64_t, int>> cells;
-  cells.reserve(s_.vertices.size());
-  for (size_t i = 0; i < s_.vertices.size(); ++i)
-    cells.emplace_back(CellKey::of(x.segment<3>(3 * s_.vertices[i]), h), static_cast<int>(i));
-  std::sort(cells.begin(), cells.end());
+  // Vertices binned once in cells of size `reach`; each triangle visits the cells its box,
+  // grown by `reach`, overlaps.
+  const UniformGrid grid(static_cast<int>(s_.vertices.size()), reach,
+                         [&](int i) { return Eigen::Vector3d(x.segment<3>(3 * s_.vertices[i])); });
   for (size_t t = 0; t < s_.triangles.size(); ++t) {
     const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
                           b = x.segment<3>(3 * s_.triangles[t][1]),
                           c = x.segment<3>(3 * s_.triangles[t][2]);
     const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
     const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
-    const auto cell_lo = [&](double v) { return static_cast<std::int64_t>(std::floor(v / h)); };
-    for (std::int64_t I = cell_lo(lo.x()); I <= cell_lo(hi.x()); ++I) {
-      for (std::int64_t J = cell_lo(lo.y()); J <= cell_lo(hi.y()); ++J) {
-        for (std::int64_t K = cell_lo(lo.z()); K <= cell_lo(hi.z()); ++K) {
-          const std::int64_t cell = CellKey::of_index(I, J, K);
-          auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(cell, -1));
-          for (; it != cells.end() && it->first == cell; ++it) {
-            const int i = it->second;
-            const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
-            if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) continue;
-            const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
-            bool excluded = false;
-            for (int k = 0; k < 3 && !excluded; ++k) {
-              Eigen::Vector2d d = s_.plane.row(s_.triangle_plane[t][k]).transpose() - pv;
-              if (s_.period > 0) d.x() -= s_.period * std::round(d.x() / s_.period);
-              excluded = d.norm() < opt_.exclusion_mm;
-            }
-            if (excluded) continue;
-            const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-            if ((p - q).norm() < reach) candidates_.push_back({i, static_cast<int>(t)});
-          }
-        }
-      }
-    }
+    grid.for_each_near(lo, hi, [&](int i) {
+      const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
+      if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) return;
+      if (excluded(i, static_cast<int>(t))) return;
+      const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+      if ((p - q).norm() < reach) candidates_.push_back({i, static_cast<int>(t)});
+    });
   }
   // Grouped by vertex (detect() walks each vertex's candidates together), in a fixed order.
   std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& p, const Candidate& q) {
@@ -378,47 +386,29 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
   }
   // Swept boxes: every vertex's segment against every triangle's box over the step, in a grid.
   const double h = std::max(opt_.alarm_mm + opt_.margin_mm, 2.0 * step_motion);
-  auto cell = [&](double v) { return static_cast<std::int64_t>(std::floor(v / h)); };
-  std::vector<std::pair<std::int64_t, int>> cells;
-  for (size_t i = 0; i < s_.vertices.size(); ++i) {
-    const Eigen::Vector3d m =
-        0.5 * (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i]));
-    cells.emplace_back(CellKey::of(m, h), static_cast<int>(i));
-  }
-  std::sort(cells.begin(), cells.end());
+  const UniformGrid grid(static_cast<int>(s_.vertices.size()), h, [&](int i) {
+    return Eigen::Vector3d(0.5 *
+                           (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i])));
+  });
   for (size_t t = 0; t < s_.triangles.size(); ++t) {
-    Eigen::Vector3d lo = x0.segment<3>(3 * s_.triangles[t][0]), hi = lo;
+    const auto& tri = s_.triangles[t];
+    Eigen::Vector3d lo = x0.segment<3>(3 * tri[0]), hi = lo;
     for (int k = 0; k < 3; ++k) {
       for (const Eigen::VectorXd* x : {&x0, &x1}) {
-        lo = lo.cwiseMin(x->segment<3>(3 * s_.triangles[t][k]));
-        hi = hi.cwiseMax(x->segment<3>(3 * s_.triangles[t][k]));
+        lo = lo.cwiseMin(x->segment<3>(3 * tri[k]));
+        hi = hi.cwiseMax(x->segment<3>(3 * tri[k]));
       }
     }
     // A vertex's segment midpoint is within step_motion / 2 of every point of it.
     lo.array() -= 0.5 * step_motion + 1e-9;
     hi.array() += 0.5 * step_motion + 1e-9;
-    for (std::int64_t I = cell(lo.x()); I <= cell(hi.x()); ++I) {
-      for (std::int64_t J = cell(lo.y()); J <= cell(hi.y()); ++J) {
-        for (std::int64_t K = cell(lo.z()); K <= cell(hi.z()); ++K) {
-          const std::int64_t key = CellKey::of_index(I, J, K);
-          for (auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(key, -1));
-               it != cells.end() && it->first == key; ++it) {
-            const int i = it->second;
-            const auto& tri = s_.triangles[t];
-            const int v = s_.vertices[i];
-            if (v == tri[0] || v == tri[1] || v == tri[2]) continue;
-            const Eigen::Vector2d pv = s_.plane.row(s_.vertex_plane[i]).transpose();
-            bool excluded = false;
-            for (int k = 0; k < 3 && !excluded; ++k) {
-              Eigen::Vector2d d = s_.plane.row(s_.triangle_plane[t][k]).transpose() - pv;
-              if (s_.period > 0) d.x() -= s_.period * std::round(d.x() / s_.period);
-              excluded = d.norm() < opt_.exclusion_mm;
-            }
-            if (!excluded && test(i, static_cast<int>(t))) return v;
-          }
-        }
-      }
-    }
+    int found = -1;
+    grid.for_each_near(lo, hi, [&](int i) {
+      const int v = s_.vertices[i];
+      if (found >= 0 || v == tri[0] || v == tri[1] || v == tri[2]) return;
+      if (!excluded(i, static_cast<int>(t)) && test(i, static_cast<int>(t))) found = v;
+    });
+    if (found >= 0) return found;
   }
   return -1;
 }

@@ -2,12 +2,14 @@
 
 #include "mvtwin/core/error.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
 #include <chrono>
 
 #include <dlfcn.h>
+#include <malloc.h>
 #include <omp.h>
 #include <mutex>
 
@@ -67,6 +69,20 @@ void serial_openmp() {
   (void)blas_single_threaded;
 }
 
+/// Every CHOLMOD factorization allocates its workspace afresh and frees it after; above
+/// glibc's mmap threshold that memory went back to the system each time and came back as page
+/// faults on the next factorization (28 % of a closure's page faults; on this VM a page fault
+/// is expensive). Freed blocks up to 32 MB (glibc's largest threshold; the paper's grid's factor
+/// is 16 MB) now stay in the process's heap for reuse. Measured: closure at the paper's grid,
+/// dt 0.02 s, 1.73 -> 1.54 s. Process-wide and once; the memory kept is bounded by the peak.
+void keep_freed_memory() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  });
+}
+
 /// A direct factorization whose symbolic analysis is redone only when the pattern changes.
 class Factor {
  public:
@@ -81,8 +97,10 @@ class Factor {
       rows_ = A.rows();
       outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
       inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
+      const auto t0 = Clock::now();
       analyze(A);
       ++st->analyses;
+      st->analyze_s += seconds_since(t0);
     }
     ++st->factorizations;
     serial_openmp();
@@ -254,6 +272,7 @@ bool StepSolverOptions::is_valid(std::string* error) const {
 
 StepSolver::StepSolver(const StepSolverOptions& o) : impl_(std::make_unique<Impl>()), opt_(o) {
   if (std::string why; !o.is_valid(&why)) throw Error("step solver options: " + why);
+  keep_freed_memory();
   switch (o.kind) {
     case LinearSolver::kCholmodSimplicial:
       impl_->factor = std::make_unique<
@@ -314,6 +333,7 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
   // A has changed since.
   auto precondition = [&](const Eigen::VectorXd& r) {
     const auto t = Clock::now();
+    ++stats_.applications;
     Eigen::VectorXd z;
     if (A.rotate && opt_.rotated_preconditioner && !fresh) {
       Eigen::VectorXd rr = r;
@@ -344,6 +364,8 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
         const double alpha = rz / pAp;
         *xk += alpha * p;
         r -= alpha * Ap;
+        // Converged: the next direction (one more preconditioner application) is not needed.
+        if (r.norm() <= opt_.pcg_tolerance * bnorm) break;
         z = precondition(r);
         const double rz_new = r.dot(z);
         p = z + (rz_new / rz) * p;

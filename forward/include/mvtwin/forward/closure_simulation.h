@@ -105,9 +105,12 @@ struct ClosureSummary {
   /// Elements compressed below the inversion guard's threshold at the last linearization.
   int guarded_elements = 0;
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
+  int preconditioner_applications = 0;
   int pcg_fallbacks = 0;         ///< PCG solves that gave up and factorized
   int unconverged_solves = 0;    ///< solves left above pcg_tolerance after a fresh factorization
   double factorize_s = 0;        ///< part of solve_s spent in factorizations
+  double precondition_s = 0;     ///< part of solve_s spent applying the factorization
+  double analyze_s = 0;          ///< part of factorize_s spent in the symbolic analysis
   double matrix_assembly_s = 0;  ///< part of assembly_s spent assembling the step matrix
 
   std::string brief_report() const;

@@ -144,11 +144,21 @@ class SelfContact {
 
  private:
   void full_search(const Eigen::VectorXd& x);
+  /// Whether surface vertex i is within the exclusion distance (in the unrolled plane) of a
+  /// corner of triangle t: such pairs are neighbours on the leaflet, not contacts.
+  bool excluded(int i, int t) const;
 
   SelfContactOptions opt_;
   double stiffness_per_area_ = 0.0, max_depth_mm_ = 0.0;
   Surface s_;
   std::vector<Pair> pairs_;
+  // Each triangle's corners in the unrolled plane: their centre and the largest distance of a
+  // corner from it, to decide most exclusions without looking at the corners.
+  // The squared distances below (inside) and above (outside) which every corner is within,
+  // or none is within, the exclusion distance of a vertex.
+  std::vector<Eigen::Vector2d> triangle_centre_;
+  std::vector<double> triangle_inside2_, triangle_outside2_;
+  std::vector<Eigen::Vector2d> vertex_uv_;  // each surface vertex in the unrolled plane
   struct Candidate {
     int vertex;  // index into the surface's vertices
     int triangle;

@@ -62,8 +62,10 @@ class StepSolver {
  public:
   struct Stats {
     int analyses = 0, factorizations = 0, solves = 0, pcg_iterations = 0, pcg_fallbacks = 0;
-    int unconverged = 0;  ///< solves that kept CG's last iterate after a fresh factorization
+    int applications = 0;  ///< preconditioner (factor) applications
+    int unconverged = 0;   ///< solves that kept CG's last iterate after a fresh factorization
     double factorize_s = 0, apply_s = 0;  ///< time in factorizations and in factor solves
+    double analyze_s = 0;  ///< part of factorize_s spent in symbolic analyses (orderings)
   };
   /// One system: y = A x, and A's lower triangle (column major) on a fixed pattern, asked for
   /// only when a factorization is due.
