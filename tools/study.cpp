@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/studies/work_pool.h"
+#include "one_patient_study.h"
 #include "study_clip.h"
 #include "study_cohort.h"
 #include "study_commands.h"
@@ -33,6 +34,19 @@ studies::StudyProgress progress_printer(const studies::WorkPool& pool) {
 void apply_model_setting(const std::string& assignment, forward::ClosureOptions* options,
                          const std::string& why) {
   forward::apply_option(assignment, options, why);
+}
+
+void add_one_patient_options(CLI::App* cmd, OnePatientStudyArgs* args) {
+  cmd->add_option("--out", args->out, "the study folder")->required();
+  cmd->add_option("--seed", args->seed, "cohort seed of the virtual patient")->default_val(2026);
+  cmd->add_option("--patient", args->patient, "index of the virtual patient in its cohort")
+      ->default_val(0)
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--patient-file", args->patient_file, "a patient file instead")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--jobs", args->jobs, "simulations at once in each process")
+      ->default_val(2)
+      ->check(CLI::Range(1, 256));
 }
 
 void register_study(CLI::App& app, Context& ctx) {

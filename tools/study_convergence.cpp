@@ -74,16 +74,7 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
       "paper's, a plot per series, the time-against-error (Pareto) plot, study.json, study.h5\n"
       "and report.md/.html. Resumable; the base model is simulated once for every series.");
   auto a = std::make_shared<StudyConvergenceArgs>();
-  cmd->add_option("--out", a->out, "the study folder")->required();
-  cmd->add_option("--seed", a->seed, "cohort seed of the virtual patient")->default_val(2026);
-  cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")
-      ->default_val(0)
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--patient-file", a->patient_file, "a patient file instead")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")
-      ->default_val(2)
-      ->check(CLI::Range(1, 256));
+  add_one_patient_options(cmd, a.get());
   cmd->add_option("--set", a->sets, "name=value for the base model (pcg_tolerance=1e-4, ...)");
   cmd->add_option("--ures", a->ures, "in-plane series, coarse to fine")->delimiter(',');
   cmd->add_option("--vres", a->vres, "radial series, coarse to fine")->delimiter(',');

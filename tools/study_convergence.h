@@ -1,20 +1,16 @@
 #pragma once
 // mvtwin study convergence: the closure over resolution, layers and time step, each run against
 // the finest of its series, and time against error (studies/convergence_study.h).
-#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
-#include "command.h"
+#include "one_patient_study.h"
 
 namespace mvtwin::tools {
 
-struct StudyConvergenceArgs : CommandArgs {
-  std::string out, patient_file;
-  std::uint64_t seed = 2026;
-  int patient = 0, jobs = 2;
+struct StudyConvergenceArgs : OnePatientStudyArgs {
   bool quick = false;
   std::vector<std::string> sets;
   std::vector<int> ures, vres, layers;

@@ -68,18 +68,9 @@ void register_study_sensitivity(CLI::App* study, Context& ctx) {
       "+-30 %. Writes the tips' distance to the annulus plane over time (plots), the largest\n"
       "difference from the baseline next to the paper's, study.json, study.h5, report.md/.html.");
   auto a = std::make_shared<StudySensitivityArgs>();
-  cmd->add_option("--out", a->out, "the study folder")->required();
-  cmd->add_option("--seed", a->seed, "cohort seed of the virtual patient")->default_val(2026);
-  cmd->add_option("--patient", a->patient, "index of the virtual patient in its cohort")
-      ->default_val(0)
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--patient-file", a->patient_file, "a patient file instead")
-      ->check(CLI::ExistingFile);
+  add_one_patient_options(cmd, a.get());
   cmd->add_option("--sample", a->sample_s, "tip distances every this much image time, s")
       ->default_val(0.01);
-  cmd->add_option("--jobs", a->jobs, "simulations at once in each process")
-      ->default_val(2)
-      ->check(CLI::Range(1, 256));
   cmd->add_option("--set", a->sets, "name=value for the baseline model (ures=40, dt=0.005, ...)");
   cmd->add_flag("--quick", a->quick, "the test size: a coarse model (16 x 12, dt 0.02 s)");
   run_on_parse(cmd, ctx, a, run_study_sensitivity);

@@ -1,20 +1,16 @@
 #pragma once
 // mvtwin study sensitivity: annulus and papillary motion, chordae count, stiffness and rest
 // lengths (the paper's Sec. 4.2; studies/sensitivity_study.h).
-#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
-#include "command.h"
+#include "one_patient_study.h"
 
 namespace mvtwin::tools {
 
-struct StudySensitivityArgs : CommandArgs {
-  std::string out, patient_file;
-  std::uint64_t seed = 2026;
-  int patient = 0, jobs = 2;
+struct StudySensitivityArgs : OnePatientStudyArgs {
   double sample_s = 0.01;
   bool quick = false;
   std::vector<std::string> sets;

@@ -9,7 +9,6 @@
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
-#include "mvtwin/forward/elastic_body.h"
 #include "mvtwin/forward/self_contact.h"
 #include "mvtwin/forward/step_solver.h"
 #include "mvtwin/forward/valve_model.h"

@@ -7,7 +7,6 @@
 
 #include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_simulation.h"
-#include "mvtwin/forward/valve_model.h"
 
 namespace mvtwin::forward {
 

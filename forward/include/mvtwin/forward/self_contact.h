@@ -1,7 +1,6 @@
 #pragma once
 #include <array>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include <Eigen/Core>

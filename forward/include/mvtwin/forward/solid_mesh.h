@@ -2,7 +2,6 @@
 #include <array>
 #include <map>
 #include <utility>
-#include <vector>
 
 #include <Eigen/Core>
 

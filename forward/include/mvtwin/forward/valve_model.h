@@ -7,7 +7,6 @@
 
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
-#include "mvtwin/forward/chorda.h"
 #include "mvtwin/forward/solid_mesh.h"
 
 namespace mvtwin::forward {

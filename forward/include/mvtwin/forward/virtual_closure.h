@@ -1,5 +1,4 @@
 #pragma once
-#include <string>
 
 #include "mvtwin/core/patient.h"
 #include "mvtwin/forward/closure_simulation.h"

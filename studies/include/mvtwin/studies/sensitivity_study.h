@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/studies/study_folder.h"
