@@ -438,6 +438,7 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   sum.factorizations = ls.factorizations;
   sum.pcg_iterations = ls.pcg_iterations;
   sum.preconditioner_applications = ls.applications;
+  sum.orderings_reused = ls.orderings_reused;
   if (contact_) {
     sum.contact_searches = contact_->searches();
     sum.contact_reused = contact_->reused();

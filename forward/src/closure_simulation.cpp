@@ -67,13 +67,13 @@ std::string ClosureSummary::brief_report() const {
      << ", solve " << solve_s << " of which factorizing " << factorize_s << " (analysis "
      << analyze_s << ") and preconditioning " << precondition_s << ", contact " << contact_s
      << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
-     << analyses << " analyses, " << pcg_iterations << " PCG iterations, "
-     << preconditioner_applications << " preconditioner applications, " << unconverged_solves
-     << " unconverged; contact: " << contacts << " pairs at the end (max " << max_contacts
-     << ", closest " << min_contact_distance_mm << " mm), " << contact_searches << " searches, "
-     << contact_reused << " reused the candidate list; " << interpenetrating_nodes << " of "
-     << interpenetration_checked << " surface nodes inside the other leaflet; " << guarded_elements
-     << " elements held by the inversion guard";
+     << analyses << " analyses (" << orderings_reused << " reusing an ordering), " << pcg_iterations
+     << " PCG iterations, " << preconditioner_applications << " preconditioner applications, "
+     << unconverged_solves << " unconverged; contact: " << contacts << " pairs at the end (max "
+     << max_contacts << ", closest " << min_contact_distance_mm << " mm), " << contact_searches
+     << " searches, " << contact_reused << " reused the candidate list; " << interpenetrating_nodes
+     << " of " << interpenetration_checked << " surface nodes inside the other leaflet; "
+     << guarded_elements << " elements held by the inversion guard";
   return os.str();
 }
 
@@ -192,6 +192,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"factorizations", s.factorizations},
                  {"pcg_iterations", s.pcg_iterations},
                  {"preconditioner_applications", s.preconditioner_applications},
+                 {"orderings_reused", s.orderings_reused},
                  {"unconverged_solves", s.unconverged_solves},
                  {"final_update_norm", s.final_update_norm},
                  {"interpenetrating_nodes", s.interpenetrating_nodes},

@@ -12,6 +12,8 @@
 #include <malloc.h>
 #include <omp.h>
 #include <mutex>
+#include <type_traits>
+#include <vector>
 
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCholesky>
@@ -98,7 +100,7 @@ class Factor {
       outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
       inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
       const auto t0 = Clock::now();
-      analyze(A);
+      if (analyze(A)) ++st->orderings_reused;
       ++st->analyses;
       st->analyze_s += seconds_since(t0);
     }
@@ -109,7 +111,8 @@ class Factor {
   virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
 
  protected:
-  virtual void analyze(const Eigen::SparseMatrix<double>& A) = 0;
+  /// The symbolic analysis; true when it reused an ordering found earlier in the process.
+  virtual bool analyze(const Eigen::SparseMatrix<double>& A) = 0;
   virtual bool numeric(const Eigen::SparseMatrix<double>& A) = 0;
 
  private:
@@ -122,6 +125,66 @@ class SupernodalLLT
     : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> {
  public:
   const cholmod_factor* factor() const { return m_cholmodFactor; }
+
+  /// analyzePattern with the fill-reducing permutation given: no ordering is tried and the
+  /// permutation is kept as it is (no postordering: a permutation taken from a factor is
+  /// postordered already), so the factor's structure is the one that permutation gave before.
+  void analyze_given(const Eigen::SparseMatrix<double>& A, std::vector<int> perm) {
+    if (m_cholmodFactor) {
+      cholmod_free_factor(&m_cholmodFactor, &cholmod());
+      m_cholmodFactor = nullptr;
+    }
+    cholmod_sparse a = Eigen::viewAsCholmod(A.selfadjointView<Eigen::Lower>());
+    const int nmethods = cholmod().nmethods, ordering = cholmod().method[0].ordering;
+    const int postorder = cholmod().postorder;
+    cholmod().nmethods = 1;
+    cholmod().method[0].ordering = CHOLMOD_GIVEN;
+    cholmod().postorder = 0;
+    m_cholmodFactor = cholmod_analyze_p(&a, perm.data(), nullptr, 0, &cholmod());
+    cholmod().nmethods = nmethods;
+    cholmod().method[0].ordering = ordering;
+    cholmod().postorder = postorder;
+    m_isInitialized = true;
+    m_info = m_cholmodFactor ? Eigen::Success : Eigen::NumericalIssue;
+    m_analysisIsOk = m_cholmodFactor != nullptr;
+    m_factorizationIsOk = false;
+  }
+};
+
+/// The fill-reducing orderings found in this process, by sparsity pattern (the last few). A
+/// calibration or a study simulates the same model many times: its step matrix's pattern is the
+/// same every time, and choosing its ordering (AMD, METIS and nested dissection tried) is most
+/// of a symbolic analysis. The ordering is a function of the pattern alone (METIS is seeded the
+/// same on every call), so reusing it gives the factor a fresh analysis would give.
+class OrderingCache {
+ public:
+  static constexpr size_t kEntries = 4;
+  /// The ordering of A's pattern, or nullptr.
+  const std::vector<int>* find(const Eigen::SparseMatrix<double>& A) const {
+    for (const Entry& e : entries_) {
+      if (e.rows == A.rows() && e.inner.size() == static_cast<size_t>(A.nonZeros()) &&
+          std::equal(e.outer.begin(), e.outer.end(), A.outerIndexPtr()) &&
+          std::equal(e.inner.begin(), e.inner.end(), A.innerIndexPtr()))
+        return &e.perm;
+    }
+    return nullptr;
+  }
+  void store(const Eigen::SparseMatrix<double>& A, const cholmod_factor* L) {
+    if (!L || !L->Perm || L->itype != CHOLMOD_INT) return;
+    if (entries_.size() == kEntries) entries_.erase(entries_.begin());
+    const int* perm = static_cast<const int*>(L->Perm);
+    entries_.push_back({A.rows(),
+                        {A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1},
+                        {A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros()},
+                        {perm, perm + L->n}});
+  }
+
+ private:
+  struct Entry {
+    Eigen::Index rows;
+    std::vector<int> outer, inner, perm;
+  };
+  std::vector<Entry> entries_;
 };
 
 /// A single-precision copy of a CHOLMOD supernodal LL^T factor (L L^T = P A P^T), solved by its
@@ -197,7 +260,7 @@ class FactorOf : public Factor {
   }
 
  protected:
-  void analyze(const Eigen::SparseMatrix<double>& A) override {
+  bool analyze(const Eigen::SparseMatrix<double>& A) override {
     if constexpr (requires { s_.cholmod(); }) {
       // AMD, METIS and CHOLMOD's nested dissection tried, the ordering with the least fill
       // kept (on the 30 x 30 valve: flops 6.7e8 / 5.6e8 / 5.2e8). The pattern is fixed over a
@@ -213,7 +276,18 @@ class FactorOf : public Factor {
     // a time keeps every simulation's numbers independent of what runs beside it.
     static std::mutex analysis_mutex;
     std::lock_guard<std::mutex> lock(analysis_mutex);
+    if constexpr (std::is_same_v<Solver, SupernodalLLT>) {
+      static OrderingCache orderings;  // guarded by analysis_mutex
+      if (const std::vector<int>* perm = orderings.find(A)) {
+        s_.analyze_given(A, *perm);
+        return true;
+      }
+      s_.analyzePattern(A);
+      orderings.store(A, s_.factor());
+      return false;
+    }
     s_.analyzePattern(A);
+    return false;
   }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {
     s_.factorize(A);

@@ -65,6 +65,8 @@ class StepSolver {
     int unconverged = 0;   ///< solves that kept CG's last iterate after a fresh factorization
     double factorize_s = 0, apply_s = 0;  ///< time in factorizations and in factor solves
     double analyze_s = 0;  ///< part of factorize_s spent in symbolic analyses (orderings)
+    /// Analyses that reused the ordering of an earlier solver in the process (same pattern).
+    int orderings_reused = 0;
   };
   /// One system: y = A x, and A's lower triangle (column major) on a fixed pattern, asked for
   /// only when a factorization is due.
