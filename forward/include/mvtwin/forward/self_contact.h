@@ -151,10 +151,10 @@ class SelfContact {
   double stiffness_per_area_ = 0.0, max_depth_mm_ = 0.0;
   Surface s_;
   std::vector<Pair> pairs_;
-  // Each triangle's corners in the unrolled plane: their centre and the largest distance of a
-  // corner from it, to decide most exclusions without looking at the corners.
-  // The squared distances below (inside) and above (outside) which every corner is within,
-  // or none is within, the exclusion distance of a vertex.
+  // Per triangle, in the unrolled plane: the centre of its corners, and the squared
+  // centre-to-vertex distances below which every corner (inside2) and above which no corner
+  // (outside2) is within the exclusion distance of the vertex; between them excluded() looks
+  // at the corners.
   std::vector<Eigen::Vector2d> triangle_centre_;
   std::vector<double> triangle_inside2_, triangle_outside2_;
   std::vector<Eigen::Vector2d> vertex_uv_;  // each surface vertex in the unrolled plane
