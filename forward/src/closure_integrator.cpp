@@ -13,6 +13,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/forward/chorda.h"
 #include "mvtwin/forward/interpenetration.h"
+#include "run_both.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -38,6 +39,8 @@ ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOpt
   if (!options_.is_valid(&why)) throw Error("closure options: " + why);
   const SolidMesh& mesh = scene_.model.mesh;
   body_.set_inversion_guard(options_.inversion_guard);
+  linear_.set_threads(options_.threads);
+  body_.set_threads(options_.threads);
   n_ = mesh.num_nodes();
   ndof_ = 3 * n_;
 
@@ -139,7 +142,6 @@ Eigen::VectorXd ClosureIntegrator::first_guess(const ValveState& start, double t
 StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, double h,
                                          const Eigen::VectorXd& v1) {
   const auto ta = Clock::now();
-  const double contact_before = counters_.contact_s;
   const double tau1 = tau + h;
   const double scene_time = std::max(tau1, 0.0);
   h_ = h;
@@ -147,16 +149,37 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
   cm_ = 1.0 + h * options_.rayleigh_mass;         // M's factor
   const Eigen::VectorXd x1 = start.x + h * v1;
 
-  // Elastic forces and K v1 (for the stiffness-proportional damping) in one pass.
+  // Elastic forces and K v1 (for the stiffness-proportional damping) in one pass, and beside
+  // it (run_both) the contact's search and forces into their own vector.
   Eigen::VectorXd f = -options_.rayleigh_mass * mass_dof_.cwiseProduct(v1);
-  if (terms_.elastic) {
-    Eigen::VectorXd g, Kv;
-    const int bad = body_.gradient(x1, &g, &rot_, nullptr, &v1, &Kv);
-    node_rotation_current_ = false;
-    if (bad >= 0)
-      return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
-    f = -g - options_.rayleigh_mass * mass_dof_.cwiseProduct(v1) - options_.rayleigh_stiffness * Kv;
+  Eigen::VectorXd g, Kv, fc;
+  int bad = -1;
+  double contact_s = 0.0;
+  const bool with_contact = contact_ && terms_.contact;
+  run_both(
+      options_.threads,
+      [&] {
+        if (!terms_.elastic) return;
+        bad = body_.gradient(x1, &g, &rot_, nullptr, &v1, &Kv);
+        node_rotation_current_ = false;
+      },
+      [&] {
+        if (!with_contact) return;
+        const auto tc = Clock::now();
+        const int found = contact_->detect(x1);
+        counters_.contacts = found;
+        counters_.max_contacts = std::max(counters_.max_contacts, found);
+        fc.setZero(ndof_);
+        contact_->add_forces(v1, &fc);
+        contact_s = seconds_since(tc);
+      });
+  counters_.contact_s += contact_s;
+  if (bad >= 0) {
+    counters_.assembly_s += seconds_since(ta) - contact_s;
+    return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
   }
+  if (terms_.elastic)
+    f = -g - options_.rayleigh_mass * mass_dof_.cwiseProduct(v1) - options_.rayleigh_stiffness * Kv;
   if (terms_.springs) {
     const Eigen::Vector3d tips[2] = {scene_.papillary_tip(0, scene_time),
                                      scene_.papillary_tip(1, scene_time)};
@@ -174,14 +197,7 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
       cable_tangent_[c] = Hc.topLeftCorner<3, 3>();
     }
   }
-  if (contact_ && terms_.contact) {
-    const auto tc = Clock::now();
-    const int found = contact_->detect(x1);
-    counters_.contacts = found;
-    counters_.max_contacts = std::max(counters_.max_contacts, found);
-    contact_->add_forces(v1, &f);
-    counters_.contact_s += seconds_since(tc);
-  }
+  if (with_contact) f += fc;
   if (terms_.pressure) {
     const double p = tau1 < 0.0 ? 0.0 : scene_.pressure(tau1);
     for (const PressureFace& pf : scene_.pressure_faces) {
@@ -196,7 +212,8 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
     const int d = free_dofs_[i];
     residual_[static_cast<Eigen::Index>(i)] = mass_[d / 3] * (v1[d] - start.v[d]) - h * f[d];
   }
-  counters_.assembly_s += seconds_since(ta) - (counters_.contact_s - contact_before);
+  // With two threads the contact ran beside the elastic pass: count only the rest here.
+  counters_.assembly_s += seconds_since(ta) - contact_s;
   return {};
 }
 

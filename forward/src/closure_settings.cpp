@@ -100,6 +100,7 @@ const std::map<std::string, Field>& fields() {
     integer("refactor_iterations",
             [](ClosureOptions& o) -> int& { return o.solver.refactor_iterations; });
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
+    integer("threads", [](ClosureOptions& o) -> int& { return o.threads; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
     boolean("single_precision_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.single_precision_preconditioner; });
@@ -246,6 +247,12 @@ void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) 
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& o) {
   std::vector<std::pair<std::string, std::string>> out;
   for (const auto& [n, f] : fields()) out.emplace_back(n, f.get(o));
+  return out;
+}
+
+std::vector<std::pair<std::string, std::string>> describe_result_options(const ClosureOptions& o) {
+  std::vector<std::pair<std::string, std::string>> out = describe_options(o);
+  std::erase_if(out, [](const auto& kv) { return kv.first == "threads"; });
   return out;
 }
 

@@ -54,6 +54,7 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
+  if (threads < 1 || threads > 2) return bad("threads must be 1 or 2");
   return true;
 }
 

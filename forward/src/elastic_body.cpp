@@ -1,5 +1,7 @@
 #include "mvtwin/forward/elastic_body.h"
 
+#include "run_both.h"
+
 #include <cmath>
 #include <string>
 
@@ -105,22 +107,18 @@ int ElasticBody::accumulate(const Eigen::VectorXd& x, Eigen::VectorXd* g,
 }
 
 template <int N>
-int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
+int ElasticBody::gradient_range(const std::vector<CorotationalTet<N>>& elems, int e0, int e1,
                                 const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
-                                double* energy, const Eigen::VectorXd* p,
-                                Eigen::VectorXd* Kp) const {
+                                std::vector<ElementRotations::Guard>* guards, double* energy,
+                                const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const {
   using Tet = CorotationalTet<N>;
   typename Tet::Nodes xe;
   typename Tet::Vector ge, pe, kpe;
-  const int E = static_cast<int>(elems.size());
-  rot->R.resize(E);
-  rot->guards.clear();
-  rot->guard_of_element.assign(E, -1);
   g->setZero(x.size());
   if (p) Kp->setZero(x.size());
   if (energy) *energy = 0.0;
   Eigen::Matrix<double, 12, 1> dJ;
-  for (int e = 0; e < E; ++e) {
+  for (int e = e0; e < e1; ++e) {
     for (int a = 0; a < N; ++a) xe.row(a) = x.segment<3>(3 * mesh_.T(e, a)).transpose();
     if (!elems[e].rotation(xe, &rot->R[e])) return e;
     double en = 0.0;
@@ -141,8 +139,7 @@ int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
         const double k = guard_scale_[e];
         ge.template head<12>() += k * phi1 * dJ;
         en += k * phi;
-        rot->guard_of_element[e] = static_cast<int>(rot->guards.size());
-        rot->guards.push_back({e, k * phi2, dJ});
+        guards->push_back({e, k * phi2, dJ});
         if (p) kpe.template head<12>() += k * phi2 * dJ.dot(pe.template head<12>()) * dJ;
       }
     }
@@ -156,13 +153,49 @@ int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
   return -1;
 }
 
+// Two halves of the elements (run_both): the first half accumulates into the outputs, the
+// second into its own vectors, added after; the same sums in the same order on 1 or 2 threads.
 template <int N>
-void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& elems,
+int ElasticBody::gradient_order(const std::vector<CorotationalTet<N>>& elems,
+                                const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
+                                double* energy, const Eigen::VectorXd* p,
+                                Eigen::VectorXd* Kp) const {
+  const int E = static_cast<int>(elems.size()), half = E / 2;
+  rot->R.resize(E);
+  rot->guards.clear();
+  rot->guard_of_element.assign(E, -1);
+  Eigen::VectorXd g1, Kp1;
+  std::vector<ElementRotations::Guard> guards1;
+  double energy0 = 0.0, energy1 = 0.0;
+  int bad0 = -1, bad1 = -1;
+  run_both(
+      threads_,
+      [&] {
+        bad0 = gradient_range(elems, 0, half, x, g, rot, &rot->guards, energy ? &energy0 : nullptr,
+                              p, Kp);
+      },
+      [&] {
+        bad1 = gradient_range(elems, half, E, x, &g1, rot, &guards1, energy ? &energy1 : nullptr, p,
+                              &Kp1);
+      });
+  if (bad0 >= 0) return bad0;
+  if (bad1 >= 0) return bad1;
+  *g += g1;
+  if (p) *Kp += Kp1;
+  if (energy) *energy = energy0 + energy1;
+  rot->guards.insert(rot->guards.end(), guards1.begin(), guards1.end());
+  for (size_t i = 0; i < rot->guards.size(); ++i)
+    rot->guard_of_element[rot->guards[i].element] = static_cast<int>(i);
+  return -1;
+}
+
+template <int N>
+void ElasticBody::tangent_times_range(const std::vector<CorotationalTet<N>>& elems, int e0, int e1,
                                       const ElementRotations& rot, const Eigen::VectorXd& p,
                                       Eigen::VectorXd* y) const {
   using Tet = CorotationalTet<N>;
   typename Tet::Vector pe;
-  for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
+  for (int e = e0; e < e1; ++e) {
     for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p.segment<3>(3 * mesh_.T(e, a));
     typename Tet::Vector ye = elems[e].tangent_times(rot.R[e], pe);
     if (!rot.guard_of_element.empty() && rot.guard_of_element[e] >= 0) {
@@ -171,6 +204,19 @@ void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& ele
     }
     for (int a = 0; a < N; ++a) y->segment<3>(3 * mesh_.T(e, a)) += ye.template segment<3>(3 * a);
   }
+}
+
+template <int N>
+void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& elems,
+                                      const ElementRotations& rot, const Eigen::VectorXd& p,
+                                      Eigen::VectorXd* y) const {
+  const int E = static_cast<int>(elems.size()), half = E / 2;
+  Eigen::VectorXd y0 = Eigen::VectorXd::Zero(y->size()), y1 = Eigen::VectorXd::Zero(y->size());
+  run_both(
+      threads_, [&] { tangent_times_range(elems, 0, half, rot, p, &y0); },
+      [&] { tangent_times_range(elems, half, E, rot, p, &y1); });
+  *y += y0;
+  *y += y1;
 }
 
 template <int N>

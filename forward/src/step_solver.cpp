@@ -1,6 +1,7 @@
 #include "mvtwin/forward/step_solver.h"
 
 #include "mvtwin/core/error.h"
+#include "run_both.h"
 
 #include <algorithm>
 #include <cmath>
@@ -109,7 +110,8 @@ class Factor {
     serial_openmp();
     return numeric(A);
   }
-  virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
+  /// F^-1 b; threads > 1 lets a supernodal single-precision factor run in two parts at once.
+  virtual Eigen::VectorXd apply(const Eigen::VectorXd& b, int threads) const = 0;
 
  protected:
   /// The symbolic analysis; true when it reused an ordering found earlier in the process.
@@ -192,6 +194,14 @@ class OrderingCache {
 /// own supernodal forward and backward substitution. As a preconditioner it needs no double
 /// precision, and a triangular solve reads the whole factor twice, memory-bound: floats halve
 /// the traffic.
+///
+/// The substitutions run in two parts at once (run_both). The supernodes' elimination tree is
+/// split into two groups of whole subtrees of about equal work and the rest, the "top" (the
+/// separators above them; with a nested-dissection ordering a small dense part): the forward
+/// solve does both groups at once and the top after them, the backward solve the top first and
+/// both groups at once after it. A group's updates of top rows go to its own buffer, added to
+/// the top rows in a fixed order (group 0, then 1) whatever the number of threads, so that the
+/// preconditioner, and so the simulation, is the same bit for bit on one thread or two.
 class FloatSupernodal {
  public:
   bool set(const cholmod_factor* L) {
@@ -211,51 +221,154 @@ class FloatSupernodal {
     const double* x = static_cast<const double*>(L->x);
     x_.resize(L->xsize);
     for (size_t i = 0; i < L->xsize; ++i) x_[i] = static_cast<float>(x[i]);
+    split();
     return true;
   }
-  Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
-    Eigen::VectorXf y(n_), t;
+  Eigen::VectorXd solve(const Eigen::VectorXd& b, int threads) const {
+    Eigen::VectorXf y(n_);
     for (int k = 0; k < n_; ++k) y[k] = static_cast<float>(b[perm_[k]]);
-    const int ns = static_cast<int>(super_.size()) - 1;
-    using Block = Eigen::Map<const Eigen::MatrixXf>;
-    for (int s = 0; s < ns; ++s) {  // L y = P b
-      const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
-      const Block Ls(x_.data() + px_[s], nr, nc);
-      auto y1 = y.segment(k1, nc);
-      Ls.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(y1);
-      if (nr > nc) {
-        t.noalias() = Ls.bottomRows(nr - nc) * y1;
-        const int* rows = s_.data() + pi_[s] + nc;
-        for (int i = 0; i < nr - nc; ++i) y[rows[i]] -= t[i];
-      }
-    }
-    for (int s = ns - 1; s >= 0; --s) {  // L^T x' = y
-      const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
-      const Block Ls(x_.data() + px_[s], nr, nc);
-      auto y1 = y.segment(k1, nc);
-      if (nr > nc) {
-        t.resize(nr - nc);
-        const int* rows = s_.data() + pi_[s] + nc;
-        for (int i = 0; i < nr - nc; ++i) t[i] = y[rows[i]];
-        y1.noalias() -= Ls.bottomRows(nr - nc).transpose() * t;
-      }
-      Ls.topRows(nc).triangularView<Eigen::Lower>().transpose().solveInPlace(y1);
-    }
+    // L y = P b: both groups (their updates of top rows into their buffers), then the top.
+    Eigen::VectorXf buffer[2];
+    auto forward_group = [&](int g) {
+      buffer[g].setZero(n_);
+      for (int s : group_[g]) forward(s, &y, g, &buffer[g]);
+    };
+    run_both(
+        threads, [&] { forward_group(0); }, [&] { forward_group(1); });
+    for (int r : top_rows_) y[r] = (y[r] + buffer[0][r]) + buffer[1][r];
+    for (int s : top_) forward(s, &y, -1, nullptr);
+    // L^T x' = y: the top, then both groups (reading top rows, writing their own).
+    for (auto it = top_.rbegin(); it != top_.rend(); ++it) backward(*it, &y);
+    auto backward_group = [&](int g) {
+      for (auto it = group_[g].rbegin(); it != group_[g].rend(); ++it) backward(*it, &y);
+    };
+    run_both(
+        threads, [&] { backward_group(0); }, [&] { backward_group(1); });
     Eigen::VectorXd out(n_);
     for (int k = 0; k < n_; ++k) out[perm_[k]] = static_cast<double>(y[k]);
     return out;
   }
 
  private:
+  using Block = Eigen::Map<const Eigen::MatrixXf>;
+  // Supernode s of the forward substitution, in group g: its updates of rows outside the group
+  // (the top's) go to *buf (g < 0: s is in the top, and so are all its rows).
+  void forward(int s, Eigen::VectorXf* y, int g, Eigen::VectorXf* buf) const {
+    const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
+    const Block Ls(x_.data() + px_[s], nr, nc);
+    auto y1 = y->segment(k1, nc);
+    Ls.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(y1);
+    if (nr > nc) {
+      const Eigen::VectorXf t = Ls.bottomRows(nr - nc) * y1;
+      const int* rows = s_.data() + pi_[s] + nc;
+      for (int i = 0; i < nr - nc; ++i) {
+        if (g < 0 || row_group_[rows[i]] == g)
+          (*y)[rows[i]] -= t[i];
+        else
+          (*buf)[rows[i]] -= t[i];
+      }
+    }
+  }
+  void backward(int s, Eigen::VectorXf* y) const {
+    const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
+    const Block Ls(x_.data() + px_[s], nr, nc);
+    auto y1 = y->segment(k1, nc);
+    if (nr > nc) {
+      Eigen::VectorXf t(nr - nc);
+      const int* rows = s_.data() + pi_[s] + nc;
+      for (int i = 0; i < nr - nc; ++i) t[i] = (*y)[rows[i]];
+      y1.noalias() -= Ls.bottomRows(nr - nc).transpose() * t;
+    }
+    Ls.topRows(nc).triangularView<Eigen::Lower>().transpose().solveInPlace(y1);
+  }
+
+  // Splits the supernodal elimination tree: starting from its roots, the candidate subtree of
+  // most work is repeatedly replaced by its children (its supernode joins the top), and the
+  // candidates are dealt, largest first, to the lighter of two groups; of all the splits tried,
+  // the one with the least work on the critical path (top + heavier group) is kept. A function
+  // of the factor's structure alone.
+  void split() {
+    const int ns = static_cast<int>(super_.size()) - 1;
+    std::vector<int> super_of(n_), parent(ns, -1);
+    for (int s = 0; s < ns; ++s)
+      for (int k = super_[s]; k < super_[s + 1]; ++k) super_of[k] = s;
+    std::vector<std::vector<int>> children(ns);
+    std::vector<int> candidates;
+    std::vector<double> work(ns), subtree(ns, 0.0);
+    for (int s = 0; s < ns; ++s) {
+      const int nc = super_[s + 1] - super_[s], nr = pi_[s + 1] - pi_[s];
+      work[s] = static_cast<double>(nr) * nc;
+      if (nr > nc) {
+        parent[s] = super_of[s_[pi_[s] + nc]];
+        children[parent[s]].push_back(s);
+      } else {
+        candidates.push_back(s);  // a root
+      }
+    }
+    for (int s = 0; s < ns; ++s) {  // children come before their parents
+      subtree[s] += work[s];
+      if (parent[s] >= 0) subtree[parent[s]] += subtree[s];
+    }
+    double top_work = 0.0, best = 0.0;
+    std::vector<int> best_candidates, best_assign;
+    for (int round = 0; round < 256 && !candidates.empty(); ++round) {
+      std::vector<int> order(candidates.size());
+      for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+      std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+        return subtree[candidates[a]] > subtree[candidates[b]];
+      });
+      double load[2] = {0.0, 0.0};
+      std::vector<int> assign(candidates.size());
+      for (int i : order) {
+        const int g = load[1] < load[0] ? 1 : 0;
+        assign[i] = g;
+        load[g] += subtree[candidates[i]];
+      }
+      const double cost = top_work + std::max(load[0], load[1]);
+      if (best_assign.empty() || cost < best) {
+        best = cost;
+        best_candidates = candidates;
+        best_assign = assign;
+      }
+      const int c = candidates[order[0]];  // open up the largest candidate
+      if (children[c].empty()) break;
+      candidates.erase(candidates.begin() + order[0]);
+      candidates.insert(candidates.end(), children[c].begin(), children[c].end());
+      top_work += work[c];
+    }
+    // Every supernode below a candidate joins its group; the others make the top.
+    std::vector<int> group_of(ns, -1);
+    for (size_t i = 0; i < best_candidates.size(); ++i)
+      group_of[best_candidates[i]] = best_assign[i];
+    for (int s = ns - 1; s >= 0; --s)
+      if (group_of[s] < 0 && parent[s] >= 0 && group_of[parent[s]] >= 0)
+        group_of[s] = group_of[parent[s]];
+    for (auto& g : group_) g.clear();
+    top_.clear();
+    top_rows_.clear();
+    row_group_.assign(n_, -1);
+    for (int s = 0; s < ns; ++s) {  // ascending: children before parents
+      if (group_of[s] >= 0)
+        group_[group_of[s]].push_back(s);
+      else
+        top_.push_back(s);
+      for (int k = super_[s]; k < super_[s + 1]; ++k) {
+        row_group_[k] = group_of[s];
+        if (group_of[s] < 0) top_rows_.push_back(k);
+      }
+    }
+  }
+
   int n_ = 0;
   std::vector<int> super_, pi_, px_, s_, perm_;
   std::vector<float> x_;
+  std::vector<int> group_[2], top_, top_rows_, row_group_;
 };
 
 template <typename Solver>
 class FactorOf : public Factor {
  public:
-  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
+  Eigen::VectorXd apply(const Eigen::VectorXd& b, int /*threads*/) const override {
     serial_openmp();
     return s_.solve(b);
   }
@@ -303,9 +416,9 @@ class FactorOf : public Factor {
 class SupernodalFactor : public FactorOf<SupernodalLLT> {
  public:
   explicit SupernodalFactor(bool single) : single_(single) {}
-  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
-    if (single_ && have_float_) return float_.solve(b);
-    return FactorOf<SupernodalLLT>::apply(b);
+  Eigen::VectorXd apply(const Eigen::VectorXd& b, int threads) const override {
+    if (single_ && have_float_) return float_.solve(b, threads);
+    return FactorOf<SupernodalLLT>::apply(b, threads);
   }
 
  protected:
@@ -413,10 +526,10 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
     if (A.rotate && opt_.rotated_preconditioner && !fresh) {
       Eigen::VectorXd rr = r;
       A.rotate(&rr, true);
-      z = impl_->factor->apply(rr);
+      z = impl_->factor->apply(rr, threads_);
       A.rotate(&z, false);
     } else {
-      z = impl_->factor->apply(r);
+      z = impl_->factor->apply(r, threads_);
     }
     stats_.apply_s += seconds_since(t);
     return z;

@@ -252,7 +252,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
     const fs::path cache = o.cache.empty() ? o.out / "observed" : o.cache;
     if (pool.is_root()) create_output_directory(cache);
     std::string description = "noise=" + std::to_string(o.observation.noise_mm);
-    for (const auto& [k, v] : forward::describe_options(o.observation.simulation))
+    for (const auto& [k, v] : forward::describe_result_options(o.observation.simulation))
       description += " " + k + "=" + v;
     const std::string key = cache_key(description);
     for (int i = 0; i < o.patients; ++i) {

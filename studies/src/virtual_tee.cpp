@@ -115,7 +115,7 @@ VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
     forward::apply_option(a, &closure.simulation,
                           "the truths are simulated with the virtual patients' hidden parameters");
   std::string description = "truth";
-  for (const auto& [name, value] : forward::describe_options(closure.simulation))
+  for (const auto& [name, value] : forward::describe_result_options(closure.simulation))
     description += " " + name + "=" + value;
   key = cache_key(description);
 }

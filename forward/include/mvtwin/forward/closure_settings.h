@@ -30,5 +30,9 @@ bool is_parameter_name(const std::string& name);
 
 /// Every settable option with its current value, as text (for reports and result files).
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& options);
+/// The same without the options that cannot change a result (threads), for cache keys and for
+/// deciding whether a stored run is the one asked for.
+std::vector<std::pair<std::string, std::string>> describe_result_options(
+    const ClosureOptions& options);
 
 }  // namespace mvtwin::forward

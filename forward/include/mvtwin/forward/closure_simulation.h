@@ -74,6 +74,11 @@ struct ClosureOptions {
   /// A failed step (inverted element, non-finite value, solver failure) is retried with half
   /// the step at most this many times before the simulation stops with a failure status.
   int max_step_halvings = 3;
+  /// Threads of one closure: 1, or 2 to run its parallel pieces in two parts at once (the
+  /// element passes, contact beside the elastic forces, the preconditioner's substitutions;
+  /// docs/forward-status.md). Every piece splits its work the same way whatever this is and
+  /// combines the parts in a fixed order, so results are the same bit for bit on 1 or 2.
+  int threads = 2;
 
   bool is_valid(std::string* error) const;
 };

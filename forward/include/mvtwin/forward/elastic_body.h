@@ -69,6 +69,9 @@ class ElasticBody {
   /// elasticity alone lets a sheared element collapse at finite energy. j0 = 0 switches it off.
   void set_inversion_guard(double j0) { guard_j0_ = j0; }
   double inversion_guard() const { return guard_j0_; }
+  /// Threads of gradient() and tangent_times() (1 or 2): the elements are split in two halves
+  /// whose sums are added in a fixed order, so results do not depend on it.
+  void set_threads(int threads) { threads_ = threads; }
 
   /// First element whose corner tetrahedron is inverted or flat at x (det F <= 0), or -1.
   int first_inverted(const Eigen::VectorXd& x) const;
@@ -91,6 +94,15 @@ class ElasticBody {
                      Eigen::VectorXd* g, ElementRotations* rot, double* energy,
                      const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const;
   template <int N>
+  int gradient_range(const std::vector<CorotationalTet<N>>& elems, int e0, int e1,
+                     const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
+                     std::vector<ElementRotations::Guard>* guards, double* energy,
+                     const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const;
+  template <int N>
+  void tangent_times_range(const std::vector<CorotationalTet<N>>& elems, int e0, int e1,
+                           const ElementRotations& rot, const Eigen::VectorXd& p,
+                           Eigen::VectorXd* y) const;
+  template <int N>
   void tangent_times_order(const std::vector<CorotationalTet<N>>& elems,
                            const ElementRotations& rot, const Eigen::VectorXd& p,
                            Eigen::VectorXd* y) const;
@@ -100,6 +112,7 @@ class ElasticBody {
 
   SolidMesh mesh_;
   double guard_j0_ = 0.0;
+  int threads_ = 1;
   std::vector<double> guard_scale_;  // kappa V0 per element
   std::vector<CorotationalTet<4>> linear_;
   std::vector<CorotationalTet<10>> quadratic_;

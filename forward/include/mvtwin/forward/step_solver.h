@@ -93,6 +93,9 @@ class StepSolver {
   bool solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
              std::string* why);
   const Stats& stats() const { return stats_; }
+  /// Threads of a preconditioner application (1 or 2; results do not depend on it): the
+  /// single-precision supernodal substitution runs in two parts at once with 2.
+  void set_threads(int threads) { threads_ = threads; }
 
  private:
   bool factorize(const System& A, std::string* why);
@@ -100,6 +103,7 @@ class StepSolver {
   std::unique_ptr<Impl> impl_;
   StepSolverOptions opt_;
   Stats stats_;
+  int threads_ = 1;
 };
 
 }  // namespace mvtwin::forward
