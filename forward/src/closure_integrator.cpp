@@ -72,6 +72,7 @@ ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOpt
         std::min(options_.model.al_thickness_mm, options_.model.pl_thickness_mm);
     contact_.emplace(SelfContact::valve_surface(scene_.model), options_.contact,
                      options_.contact.stiffness_per_area(scene_.peak_pressure_mpa), 0.5 * thinnest);
+    contact_->set_threads(options_.threads);
   }
   sampler_ = make_atrial_sampler(scene_.model, options_.model.ures, options_.model.vres);
 

@@ -11,6 +11,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_triangle_distance.h"
 #include "mvtwin/core/units.h"
+#include "run_both.h"
 #include "uniform_grid.h"
 
 namespace mvtwin::forward {
@@ -215,20 +216,29 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   // grown by `reach`, overlaps.
   const UniformGrid grid(static_cast<int>(s_.vertices.size()), reach,
                          [&](int i) { return Eigen::Vector3d(x.segment<3>(3 * s_.vertices[i])); });
-  for (size_t t = 0; t < s_.triangles.size(); ++t) {
-    const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
-                          b = x.segment<3>(3 * s_.triangles[t][1]),
-                          c = x.segment<3>(3 * s_.triangles[t][2]);
-    const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
-    const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
-    grid.for_each_near(lo, hi, [&](int i) {
-      const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
-      if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) return;
-      if (excluded(i, static_cast<int>(t))) return;
-      const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-      if ((p - q).norm() < reach) candidates_.push_back({i, static_cast<int>(t)});
-    });
-  }
+  // The triangles in two halves (run_both), each with its own list; the sort below makes the
+  // order independent of the split.
+  auto search = [&](size_t t0, size_t t1, std::vector<Candidate>* found) {
+    for (size_t t = t0; t < t1; ++t) {
+      const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
+                            b = x.segment<3>(3 * s_.triangles[t][1]),
+                            c = x.segment<3>(3 * s_.triangles[t][2]);
+      const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
+      const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
+      grid.for_each_near(lo, hi, [&](int i) {
+        const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
+        if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) return;
+        if (excluded(i, static_cast<int>(t))) return;
+        const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+        if ((p - q).norm() < reach) found->push_back({i, static_cast<int>(t)});
+      });
+    }
+  };
+  const size_t nt = s_.triangles.size();
+  std::vector<Candidate> second;
+  run_both(
+      threads_, [&] { search(0, nt / 2, &candidates_); }, [&] { search(nt / 2, nt, &second); });
+  candidates_.insert(candidates_.end(), second.begin(), second.end());
   // Grouped by vertex (detect() walks each vertex's candidates together), in a fixed order.
   std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& p, const Candidate& q) {
     return p.vertex != q.vertex ? p.vertex < q.vertex : p.triangle < q.triangle;
@@ -236,31 +246,16 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   x_search_ = x;
 }
 
-int SelfContact::detect(const Eigen::VectorXd& x) {
-  // Verlet list: the candidates (pairs within alarm + margin at the last search) hold every
-  // pair within the alarm distance while no node has moved by more than margin / 2 since.
-  bool fresh = x_search_.size() == x.size();
-  if (fresh) {
-    double moved = 0.0;
-    for (int v : s_.vertices)
-      moved = std::max(moved, (x.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm());
-    fresh = moved < 0.5 * opt_.margin_mm;
-  }
-  if (fresh) {
-    ++reused_;
-  } else {
-    full_search(x);
-  }
-  pairs_.clear();
-  min_distance_ = std::numeric_limits<double>::infinity();
+void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
+                                std::vector<Pair>* pairs, double* min_distance) const {
   // Closest candidate triangle per vertex and triangle group.
-  size_t k = 0;
-  while (k < candidates_.size()) {
+  size_t k = k0;
+  while (k < k1) {
     const int i = candidates_[k].vertex;
     const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
     std::array<Pair, 2> best{};
     for (Pair& b : best) b.distance = std::numeric_limits<double>::infinity();
-    for (; k < candidates_.size() && candidates_[k].vertex == i; ++k) {
+    for (; k < k1 && candidates_[k].vertex == i; ++k) {
       const int t = candidates_[k].triangle;
       const int g = s_.triangle_group.empty() ? 0 : (s_.triangle_group[t] != 0);
       const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
@@ -292,15 +287,46 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
       }
     }
     for (Pair& b : best) {
-      min_distance_ = std::min(min_distance_, b.distance);
+      *min_distance = std::min(*min_distance, b.distance);
       if (b.distance < opt_.alarm_mm) {
         // A free-edge vertex pressed edge-on against a face stands for little area of its own;
         // the face it presses on carries the load, so the larger of the two areas sets k.
         b.area = std::max(b.area, s_.vertex_area[i]);
-        pairs_.push_back(b);
+        pairs->push_back(b);
       }
     }
   }
+}
+
+int SelfContact::detect(const Eigen::VectorXd& x) {
+  // Verlet list: the candidates (pairs within alarm + margin at the last search) hold every
+  // pair within the alarm distance while no node has moved by more than margin / 2 since.
+  bool fresh = x_search_.size() == x.size();
+  if (fresh) {
+    double moved = 0.0;
+    for (int v : s_.vertices)
+      moved = std::max(moved, (x.segment<3>(3 * v) - x_search_.segment<3>(3 * v)).norm());
+    fresh = moved < 0.5 * opt_.margin_mm;
+  }
+  if (fresh) {
+    ++reused_;
+  } else {
+    full_search(x);
+  }
+  // The candidates in two parts split between vertices (run_both), each vertex's pairs in
+  // candidate order: the same pairs in the same order as one pass.
+  size_t mid = candidates_.size() / 2;
+  while (mid > 0 && mid < candidates_.size() &&
+         candidates_[mid].vertex == candidates_[mid - 1].vertex)
+    ++mid;
+  std::vector<Pair> second;
+  double min_first = std::numeric_limits<double>::infinity(), min_second = min_first;
+  pairs_.clear();
+  run_both(
+      threads_, [&] { closest_pairs(x, 0, mid, &pairs_, &min_first); },
+      [&] { closest_pairs(x, mid, candidates_.size(), &second, &min_second); });
+  pairs_.insert(pairs_.end(), second.begin(), second.end());
+  min_distance_ = std::min(min_first, min_second);
   return static_cast<int>(pairs_.size());
 }
 
@@ -378,11 +404,22 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
     const Eigen::Vector3d c[2] = {x0.segment<3>(3 * tri[2]), x1.segment<3>(3 * tri[2])};
     return vertex_triangle_crossing(p, a, b, c, s_.triangle_outward[t]);
   };
+  // Two halves at once (run_both): the first crossing of the first half, else of the second,
+  // is the first crossing in order.
+  int found[2] = {-1, -1};
   if (since_search < 0.5 * opt_.margin_mm) {
-    for (const Candidate& c : candidates_) {
-      if (test(c.vertex, c.triangle)) return s_.vertices[c.vertex];
-    }
-    return -1;
+    auto scan = [&](size_t k0, size_t k1, int* first) {
+      for (size_t k = k0; k < k1; ++k) {
+        if (test(candidates_[k].vertex, candidates_[k].triangle)) {
+          *first = s_.vertices[candidates_[k].vertex];
+          return;
+        }
+      }
+    };
+    const size_t nc = candidates_.size();
+    run_both(
+        threads_, [&] { scan(0, nc / 2, &found[0]); }, [&] { scan(nc / 2, nc, &found[1]); });
+    return found[0] >= 0 ? found[0] : found[1];
   }
   // Swept boxes: every vertex's segment against every triangle's box over the step, in a grid.
   const double h = std::max(opt_.alarm_mm + opt_.margin_mm, 2.0 * step_motion);
@@ -390,27 +427,31 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
     return Eigen::Vector3d(0.5 *
                            (x0.segment<3>(3 * s_.vertices[i]) + x1.segment<3>(3 * s_.vertices[i])));
   });
-  for (size_t t = 0; t < s_.triangles.size(); ++t) {
-    const auto& tri = s_.triangles[t];
-    Eigen::Vector3d lo = x0.segment<3>(3 * tri[0]), hi = lo;
-    for (int k = 0; k < 3; ++k) {
-      for (const Eigen::VectorXd* x : {&x0, &x1}) {
-        lo = lo.cwiseMin(x->segment<3>(3 * tri[k]));
-        hi = hi.cwiseMax(x->segment<3>(3 * tri[k]));
+  auto sweep = [&](size_t t0, size_t t1, int* first) {
+    for (size_t t = t0; t < t1; ++t) {
+      const auto& tri = s_.triangles[t];
+      Eigen::Vector3d lo = x0.segment<3>(3 * tri[0]), hi = lo;
+      for (int k = 0; k < 3; ++k) {
+        for (const Eigen::VectorXd* x : {&x0, &x1}) {
+          lo = lo.cwiseMin(x->segment<3>(3 * tri[k]));
+          hi = hi.cwiseMax(x->segment<3>(3 * tri[k]));
+        }
       }
+      // A vertex's segment midpoint is within step_motion / 2 of every point of it.
+      lo.array() -= 0.5 * step_motion + 1e-9;
+      hi.array() += 0.5 * step_motion + 1e-9;
+      grid.for_each_near(lo, hi, [&](int i) {
+        const int v = s_.vertices[i];
+        if (*first >= 0 || v == tri[0] || v == tri[1] || v == tri[2]) return;
+        if (!excluded(i, static_cast<int>(t)) && test(i, static_cast<int>(t))) *first = v;
+      });
+      if (*first >= 0) return;
     }
-    // A vertex's segment midpoint is within step_motion / 2 of every point of it.
-    lo.array() -= 0.5 * step_motion + 1e-9;
-    hi.array() += 0.5 * step_motion + 1e-9;
-    int found = -1;
-    grid.for_each_near(lo, hi, [&](int i) {
-      const int v = s_.vertices[i];
-      if (found >= 0 || v == tri[0] || v == tri[1] || v == tri[2]) return;
-      if (!excluded(i, static_cast<int>(t)) && test(i, static_cast<int>(t))) found = v;
-    });
-    if (found >= 0) return found;
-  }
-  return -1;
+  };
+  const size_t nt = s_.triangles.size();
+  run_both(
+      threads_, [&] { sweep(0, nt / 2, &found[0]); }, [&] { sweep(nt / 2, nt, &found[1]); });
+  return found[0] >= 0 ? found[0] : found[1];
 }
 
 void SelfContact::law(double d, double k, double* force, double* stiffness) const {

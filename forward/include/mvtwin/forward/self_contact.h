@@ -134,6 +134,10 @@ class SelfContact {
   /// the other leaflet (tunnelling, at large steps) is to be retried with a smaller step.
   int find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) const;
 
+  /// Threads of the searches, detect() and find_crossing() (1 or 2): each splits its loop in two
+  /// halves whose results are joined in order, so results do not depend on it.
+  void set_threads(int threads) { threads_ = threads; }
+
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
   int searches() const { return searches_; }
@@ -143,6 +147,9 @@ class SelfContact {
 
  private:
   void full_search(const Eigen::VectorXd& x);
+  // The closest pairs of candidates [k0, k1) (whole vertices) at x, appended to *pairs.
+  void closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1, std::vector<Pair>* pairs,
+                     double* min_distance) const;
   /// Whether surface vertex i is within the exclusion distance (in the unrolled plane) of a
   /// corner of triangle t: such pairs are neighbours on the leaflet, not contacts.
   bool excluded(int i, int t) const;
@@ -164,7 +171,7 @@ class SelfContact {
   };
   std::vector<Candidate> candidates_;  // by vertex
   Eigen::VectorXd x_search_;           // positions at the last full search
-  int searches_ = 0, reused_ = 0;
+  int searches_ = 0, reused_ = 0, threads_ = 1;
   double min_distance_ = 0.0;
 };
 
