@@ -110,6 +110,29 @@ TEST(StepSolver, SinglePrecisionPreconditionerReachesTheTolerance) {
   EXPECT_EQ(dbl.stats().pcg_iterations, 0);     // the double factor solves it outright
 }
 
+// The single-precision substitutions run in two parts (subtrees of the elimination tree) and
+// the rest; with threads = 2 at once. The solution is the same to the last bit either way, and
+// the split factor is still the factor: a few CG iterations to 1e-10, as in one piece.
+TEST(StepSolver, TwoThreadsSolveBitForBitAsOne) {
+  Rng rng(21);
+  const Eigen::SparseMatrix<double> A = laplacian(70, 0.02);
+  Eigen::VectorXd b(A.rows());
+  for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
+  StepSolverOptions o;
+  o.kind = LinearSolver::kCholmodSupernodal;
+  o.pcg_tolerance = 1e-10;
+  Eigen::VectorXd x[2];
+  for (int threads : {1, 2}) {
+    StepSolver s(o);
+    s.set_threads(threads);
+    std::string why;
+    ASSERT_TRUE(s.solve(A, b, &x[threads - 1], &why)) << why;
+    EXPECT_LT((A * x[threads - 1] - b).norm(), 1e-10 * b.norm());
+    EXPECT_LT(s.stats().pcg_iterations, 8) << threads << " threads";
+  }
+  EXPECT_EQ(x[0], x[1]);
+}
+
 // A second solver on the same pattern reuses the first one's ordering (a calibration's many
 // simulations of one model) and gets the factor a fresh analysis gives: the same solution to the
 // last bit. A pattern used nowhere else in this file (37 x 37), so that what ran before in the
