@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <optional>
 
 #include <gtest/gtest.h>
@@ -62,6 +63,10 @@ std::vector<Snapshot> closure_states(const ClosureScene& scene, const ClosureOpt
 struct Mismatch {
   double relative = 0;  ///< |A e - FD| / |A e|
   double norm_ae = 0, norm_fd = 0;
+  /// Round-off bound of the central difference, relative to |A e|: 1000 ulps of the residual's
+  /// norm over the difference's span. Where a term hardly acts along e (slack chordae of the
+  /// closed valve: |A e| ~ 1e-8 beside |r| ~ 1e-4) it, not the tangent, limits the mismatch.
+  double noise = 0;
 };
 
 // A e and the central difference of r along a random e (free dofs) at end velocity v1 (default:
@@ -90,7 +95,9 @@ Mismatch compare_with_finite_differences(ClosureIntegrator* it, const Snapshot& 
   const Eigen::VectorXd rp = it->residual();
   EXPECT_TRUE(it->linearize(s.state, s.tau, h, vm).ok());
   const Eigen::VectorXd fd = (rp - it->residual()) / (2 * eps);
-  return {(ae - fd).norm() / ae.norm(), ae.norm(), fd.norm()};
+  const double noise =
+      1e3 * std::numeric_limits<double>::epsilon() * rp.norm() / (2 * eps) / ae.norm();
+  return {(ae - fd).norm() / ae.norm(), ae.norm(), fd.norm(), noise};
 }
 
 class StepSystem : public ::testing::Test {
@@ -114,8 +121,9 @@ TEST_F(StepSystem, ChordaeTangentIsExact) {
   it.set_terms({false, true, false, false});
   for (const Snapshot& s : states_) {
     const Mismatch m = compare_with_finite_differences(&it, s, options_.dt, 7);
-    std::cout << "chordae at t = " << s.tau << ": relative mismatch " << m.relative << "\n";
-    EXPECT_LT(m.relative, 1e-6) << "t = " << s.tau;
+    std::cout << "chordae at t = " << s.tau << ": relative mismatch " << m.relative
+              << " (round-off bound " << m.noise << ")\n";
+    EXPECT_LT(m.relative, 1e-6 + m.noise) << "t = " << s.tau;
   }
 }
 
