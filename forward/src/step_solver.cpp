@@ -2,6 +2,7 @@
 
 #include "mvtwin/core/error.h"
 #include "run_both.h"
+#include "supernodal_numeric.h"
 
 #include <algorithm>
 #include <cmath>
@@ -112,6 +113,8 @@ class Factor {
   }
   /// F^-1 b; threads > 1 lets a supernodal single-precision factor run in two parts at once.
   virtual Eigen::VectorXd apply(const Eigen::VectorXd& b, int threads) const = 0;
+  /// Threads of the supernodal numeric factorization (1 or 2).
+  int numeric_threads = 1;
 
  protected:
   /// The symbolic analysis; true when it reused an ordering found earlier in the process.
@@ -190,47 +193,42 @@ class OrderingCache {
   std::vector<Entry> entries_;
 };
 
-/// A single-precision copy of a CHOLMOD supernodal LL^T factor (L L^T = P A P^T), solved by its
-/// own supernodal forward and backward substitution. As a preconditioner it needs no double
+/// A single-precision copy of a supernodal LL^T factor (L L^T = P A P^T), solved by its own
+/// supernodal forward and backward substitution. As a preconditioner it needs no double
 /// precision, and a triangular solve reads the whole factor twice, memory-bound: floats halve
 /// the traffic.
 ///
-/// The substitutions run in two parts at once (run_both). The supernodes' elimination tree is
-/// split into two groups of whole subtrees of about equal work and the rest, the "top" (the
-/// separators above them; with a nested-dissection ordering a small dense part): the forward
-/// solve does both groups at once and the top after them, the backward solve the top first and
-/// both groups at once after it. A group's updates of top rows go to its own buffer, added to
-/// the top rows in a fixed order (group 0, then 1) whatever the number of threads, so that the
-/// preconditioner, and so the simulation, is the same bit for bit on one thread or two.
+/// The substitutions run in two parts at once (run_both) over the structure's split of the
+/// elimination tree (SupernodalStructure: two groups of whole subtrees and the top above them):
+/// the forward solve does both groups at once and the top after them, the backward solve the
+/// top first and both groups at once after it. A group's updates of top rows go to its own buffer,
+/// added to the top rows in a fixed order (group 0, then 1) whatever the number of threads, so that
+/// the preconditioner, and so the simulation, is the same bit for bit on one thread or two.
 class FloatSupernodal {
  public:
-  bool set(const cholmod_factor* L) {
-    if (!L || !L->is_super || !L->is_ll || L->itype != CHOLMOD_INT || L->xtype != CHOLMOD_REAL)
-      return false;
-    n_ = static_cast<int>(L->n);
-    const int ns = static_cast<int>(L->nsuper);
-    auto ints = [](const void* p, size_t count) {
-      const int* q = static_cast<const int*>(p);
-      return std::vector<int>(q, q + count);
-    };
-    super_ = ints(L->super, ns + 1);
-    pi_ = ints(L->pi, ns + 1);
-    px_ = ints(L->px, ns + 1);
-    s_ = ints(L->s, L->ssize);
-    perm_ = ints(L->Perm, L->n);
-    const double* x = static_cast<const double*>(L->x);
-    x_.resize(L->xsize);
-    for (size_t i = 0; i < L->xsize; ++i) x_[i] = static_cast<float>(x[i]);
-    split();
-    return true;
+  /// The factor with structure st (which must outlive this) and values x.
+  void set(const SupernodalStructure& st, const double* x) {
+    st_ = &st;
+    x_.resize(st.xsize);
+    for (size_t i = 0; i < st.xsize; ++i) x_[i] = static_cast<float>(x[i]);
+    for (auto& g : group_) g.clear();
+    top_.clear();
+    top_rows_.clear();
+    for (int k = 0; k < st.num_supernodes(); ++k) {  // ascending: children before parents
+      const int g = st.group_of[k];
+      (g >= 0 ? group_[g] : top_).push_back(k);
+      if (g < 0)
+        for (int c = st.super[k]; c < st.super[k + 1]; ++c) top_rows_.push_back(c);
+    }
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b, int threads) const {
-    Eigen::VectorXf y(n_);
-    for (int k = 0; k < n_; ++k) y[k] = static_cast<float>(b[perm_[k]]);
+    const int n = st_->n;
+    Eigen::VectorXf y(n);
+    for (int k = 0; k < n; ++k) y[k] = static_cast<float>(b[st_->perm[k]]);
     // L y = P b: both groups (their updates of top rows into their buffers), then the top.
     Eigen::VectorXf buffer[2];
     auto forward_group = [&](int g) {
-      buffer[g].setZero(n_);
+      buffer[g].setZero(n);
       for (int s : group_[g]) forward(s, &y, g, &buffer[g]);
     };
     run_both(
@@ -244,8 +242,8 @@ class FloatSupernodal {
     };
     run_both(
         threads, [&] { backward_group(0); }, [&] { backward_group(1); });
-    Eigen::VectorXd out(n_);
-    for (int k = 0; k < n_; ++k) out[perm_[k]] = static_cast<double>(y[k]);
+    Eigen::VectorXd out(n);
+    for (int k = 0; k < n; ++k) out[st_->perm[k]] = static_cast<double>(y[k]);
     return out;
   }
 
@@ -254,15 +252,16 @@ class FloatSupernodal {
   // Supernode s of the forward substitution, in group g: its updates of rows outside the group
   // (the top's) go to *buf (g < 0: s is in the top, and so are all its rows).
   void forward(int s, Eigen::VectorXf* y, int g, Eigen::VectorXf* buf) const {
-    const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
-    const Block Ls(x_.data() + px_[s], nr, nc);
+    const SupernodalStructure& st = *st_;
+    const int k1 = st.super[s], nc = st.super[s + 1] - k1, nr = st.pi[s + 1] - st.pi[s];
+    const Block Ls(x_.data() + st.px[s], nr, nc);
     auto y1 = y->segment(k1, nc);
     Ls.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(y1);
     if (nr > nc) {
       const Eigen::VectorXf t = Ls.bottomRows(nr - nc) * y1;
-      const int* rows = s_.data() + pi_[s] + nc;
+      const int* rows = st.s.data() + st.pi[s] + nc;
       for (int i = 0; i < nr - nc; ++i) {
-        if (g < 0 || row_group_[rows[i]] == g)
+        if (g < 0 || st.group_of[st.super_of[rows[i]]] == g)
           (*y)[rows[i]] -= t[i];
         else
           (*buf)[rows[i]] -= t[i];
@@ -270,99 +269,22 @@ class FloatSupernodal {
     }
   }
   void backward(int s, Eigen::VectorXf* y) const {
-    const int k1 = super_[s], nc = super_[s + 1] - k1, nr = pi_[s + 1] - pi_[s];
-    const Block Ls(x_.data() + px_[s], nr, nc);
+    const SupernodalStructure& st = *st_;
+    const int k1 = st.super[s], nc = st.super[s + 1] - k1, nr = st.pi[s + 1] - st.pi[s];
+    const Block Ls(x_.data() + st.px[s], nr, nc);
     auto y1 = y->segment(k1, nc);
     if (nr > nc) {
       Eigen::VectorXf t(nr - nc);
-      const int* rows = s_.data() + pi_[s] + nc;
+      const int* rows = st.s.data() + st.pi[s] + nc;
       for (int i = 0; i < nr - nc; ++i) t[i] = (*y)[rows[i]];
       y1.noalias() -= Ls.bottomRows(nr - nc).transpose() * t;
     }
     Ls.topRows(nc).triangularView<Eigen::Lower>().transpose().solveInPlace(y1);
   }
 
-  // Splits the supernodal elimination tree: starting from its roots, the candidate subtree of
-  // most work is repeatedly replaced by its children (its supernode joins the top), and the
-  // candidates are dealt, largest first, to the lighter of two groups; of all the splits tried,
-  // the one with the least work on the critical path (top + heavier group) is kept. A function
-  // of the factor's structure alone.
-  void split() {
-    const int ns = static_cast<int>(super_.size()) - 1;
-    std::vector<int> super_of(n_), parent(ns, -1);
-    for (int s = 0; s < ns; ++s)
-      for (int k = super_[s]; k < super_[s + 1]; ++k) super_of[k] = s;
-    std::vector<std::vector<int>> children(ns);
-    std::vector<int> candidates;
-    std::vector<double> work(ns), subtree(ns, 0.0);
-    for (int s = 0; s < ns; ++s) {
-      const int nc = super_[s + 1] - super_[s], nr = pi_[s + 1] - pi_[s];
-      work[s] = static_cast<double>(nr) * nc;
-      if (nr > nc) {
-        parent[s] = super_of[s_[pi_[s] + nc]];
-        children[parent[s]].push_back(s);
-      } else {
-        candidates.push_back(s);  // a root
-      }
-    }
-    for (int s = 0; s < ns; ++s) {  // children come before their parents
-      subtree[s] += work[s];
-      if (parent[s] >= 0) subtree[parent[s]] += subtree[s];
-    }
-    double top_work = 0.0, best = 0.0;
-    std::vector<int> best_candidates, best_assign;
-    for (int round = 0; round < 256 && !candidates.empty(); ++round) {
-      std::vector<int> order(candidates.size());
-      for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-      std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
-        return subtree[candidates[a]] > subtree[candidates[b]];
-      });
-      double load[2] = {0.0, 0.0};
-      std::vector<int> assign(candidates.size());
-      for (int i : order) {
-        const int g = load[1] < load[0] ? 1 : 0;
-        assign[i] = g;
-        load[g] += subtree[candidates[i]];
-      }
-      const double cost = top_work + std::max(load[0], load[1]);
-      if (best_assign.empty() || cost < best) {
-        best = cost;
-        best_candidates = candidates;
-        best_assign = assign;
-      }
-      const int c = candidates[order[0]];  // open up the largest candidate
-      if (children[c].empty()) break;
-      candidates.erase(candidates.begin() + order[0]);
-      candidates.insert(candidates.end(), children[c].begin(), children[c].end());
-      top_work += work[c];
-    }
-    // Every supernode below a candidate joins its group; the others make the top.
-    std::vector<int> group_of(ns, -1);
-    for (size_t i = 0; i < best_candidates.size(); ++i)
-      group_of[best_candidates[i]] = best_assign[i];
-    for (int s = ns - 1; s >= 0; --s)
-      if (group_of[s] < 0 && parent[s] >= 0 && group_of[parent[s]] >= 0)
-        group_of[s] = group_of[parent[s]];
-    for (auto& g : group_) g.clear();
-    top_.clear();
-    top_rows_.clear();
-    row_group_.assign(n_, -1);
-    for (int s = 0; s < ns; ++s) {  // ascending: children before parents
-      if (group_of[s] >= 0)
-        group_[group_of[s]].push_back(s);
-      else
-        top_.push_back(s);
-      for (int k = super_[s]; k < super_[s + 1]; ++k) {
-        row_group_[k] = group_of[s];
-        if (group_of[s] < 0) top_rows_.push_back(k);
-      }
-    }
-  }
-
-  int n_ = 0;
-  std::vector<int> super_, pi_, px_, s_, perm_;
+  const SupernodalStructure* st_ = nullptr;
   std::vector<float> x_;
-  std::vector<int> group_[2], top_, top_rows_, row_group_;
+  std::vector<int> group_[2], top_, top_rows_;
 };
 
 template <typename Solver>
@@ -412,7 +334,10 @@ class FactorOf : public Factor {
   Solver s_;
 };
 
-/// CHOLMOD supernodal, optionally applied as a preconditioner in single precision.
+/// CHOLMOD supernodal, optionally applied as a preconditioner in single precision. With the
+/// single-precision preconditioner the numeric factorization is SupernodalNumeric's (its two
+/// groups at once with two threads) on CHOLMOD's symbolic analysis; CHOLMOD's own otherwise,
+/// or should the structure not hold the matrix.
 class SupernodalFactor : public FactorOf<SupernodalLLT> {
  public:
   explicit SupernodalFactor(bool single) : single_(single) {}
@@ -422,15 +347,36 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
   }
 
  protected:
+  bool analyze(const Eigen::SparseMatrix<double>& A) override {
+    const bool reused = FactorOf<SupernodalLLT>::analyze(A);
+    prepared_ = own_ = false;
+    return reused;
+  }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {
+    have_float_ = false;
+    if (single_ && !prepared_) {
+      prepared_ = true;
+      own_ = structure_.set(s_.factor()) && numeric_.prepare(structure_, A);
+    }
+    if (own_) {
+      if (!numeric_.factorize(A, numeric_threads)) return false;
+      float_.set(structure_, numeric_.values().data());
+      have_float_ = true;
+      return true;
+    }
     const bool ok = FactorOf<SupernodalLLT>::numeric(A);
-    have_float_ = ok && single_ && float_.set(s_.factor());
+    if (ok && single_ && structure_.set(s_.factor()) && s_.factor()->x) {
+      float_.set(structure_, static_cast<const double*>(s_.factor()->x));
+      have_float_ = true;
+    }
     return ok;
   }
 
  private:
   bool single_;
-  bool have_float_ = false;
+  bool have_float_ = false, prepared_ = false, own_ = false;
+  SupernodalStructure structure_;
+  SupernodalNumeric numeric_;
   FloatSupernodal float_;
 };
 
@@ -478,6 +424,11 @@ StepSolver::StepSolver(const StepSolverOptions& o) : impl_(std::make_unique<Impl
 }
 
 StepSolver::~StepSolver() = default;
+
+void StepSolver::set_threads(int threads) {
+  threads_ = threads;
+  impl_->factor->numeric_threads = threads;
+}
 
 bool StepSolver::factorize(const System& A, std::string* why) {
   const auto t0 = Clock::now();

@@ -93,9 +93,10 @@ class StepSolver {
   bool solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
              std::string* why);
   const Stats& stats() const { return stats_; }
-  /// Threads of a preconditioner application (1 or 2; results do not depend on it): the
-  /// single-precision supernodal substitution runs in two parts at once with 2.
-  void set_threads(int threads) { threads_ = threads; }
+  /// Threads of a factorization and a preconditioner application (1 or 2; results do not
+  /// depend on it): with the single-precision preconditioner, the supernodal factorization and
+  /// substitutions run in two parts at once with 2.
+  void set_threads(int threads);
 
  private:
   bool factorize(const System& A, std::string* why);
