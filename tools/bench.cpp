@@ -93,13 +93,15 @@ forward::ClosureOptions with_settings(forward::ClosureOptions o,
 LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& ro,
                               const std::string& file, const std::string& command_line) {
   // What decides the result: every option but how often states are recorded and how the
-  // linear solver spends its work to reach its tolerance, and threads. A file made before
-  // error-controlled steps had fixed ones (step_error_mm = 0, which makes max_dt irrelevant).
+  // linear solver spends its work to reach its tolerance, and what cannot change a result. A file
+  // made before error-controlled steps had fixed ones (step_error_mm = 0, which makes max_dt
+  // irrelevant).
   auto physics = [](const std::vector<std::pair<std::string, std::string>>& o) {
     std::map<std::string, std::string> m(o.begin(), o.end());
     for (const char* k : {"record_every", "refactor_iterations", "pcg_max_iterations",
-                          "rotated_preconditioner", "single_precision_preconditioner", "threads"})
+                          "rotated_preconditioner", "single_precision_preconditioner"})
       m.erase(k);
+    std::erase_if(m, [](const auto& kv) { return !forward::affects_results(kv.first); });
     if (!m.count("step_error_mm")) m["step_error_mm"] = "0";
     if (m["step_error_mm"] == "0") m.erase("max_dt");
     return m;

@@ -250,9 +250,11 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
   return out;
 }
 
+bool affects_results(const std::string& option_name) { return option_name != "threads"; }
+
 std::vector<std::pair<std::string, std::string>> describe_result_options(const ClosureOptions& o) {
   std::vector<std::pair<std::string, std::string>> out = describe_options(o);
-  std::erase_if(out, [](const auto& kv) { return kv.first == "threads"; });
+  std::erase_if(out, [](const auto& kv) { return !affects_results(kv.first); });
   return out;
 }
 

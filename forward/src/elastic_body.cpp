@@ -211,11 +211,10 @@ void ElasticBody::tangent_times_order(const std::vector<CorotationalTet<N>>& ele
                                       const ElementRotations& rot, const Eigen::VectorXd& p,
                                       Eigen::VectorXd* y) const {
   const int E = static_cast<int>(elems.size()), half = E / 2;
-  Eigen::VectorXd y0 = Eigen::VectorXd::Zero(y->size()), y1 = Eigen::VectorXd::Zero(y->size());
+  Eigen::VectorXd y1 = Eigen::VectorXd::Zero(y->size());
   run_both(
-      threads_, [&] { tangent_times_range(elems, 0, half, rot, p, &y0); },
+      threads_, [&] { tangent_times_range(elems, 0, half, rot, p, y); },
       [&] { tangent_times_range(elems, half, E, rot, p, &y1); });
-  *y += y0;
   *y += y1;
 }
 

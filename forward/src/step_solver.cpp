@@ -111,10 +111,9 @@ class Factor {
     serial_openmp();
     return numeric(A);
   }
-  /// F^-1 b; threads > 1 lets a supernodal single-precision factor run in two parts at once.
-  virtual Eigen::VectorXd apply(const Eigen::VectorXd& b, int threads) const = 0;
-  /// Threads of the supernodal numeric factorization (1 or 2).
-  int numeric_threads = 1;
+  virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
+  /// Threads of the supernodal single-precision factorization and substitutions (1 or 2).
+  int threads = 1;
 
  protected:
   /// The symbolic analysis; true when it reused an ordering found earlier in the process.
@@ -211,15 +210,6 @@ class FloatSupernodal {
     st_ = &st;
     x_.resize(st.xsize);
     for (size_t i = 0; i < st.xsize; ++i) x_[i] = static_cast<float>(x[i]);
-    for (auto& g : group_) g.clear();
-    top_.clear();
-    top_rows_.clear();
-    for (int k = 0; k < st.num_supernodes(); ++k) {  // ascending: children before parents
-      const int g = st.group_of[k];
-      (g >= 0 ? group_[g] : top_).push_back(k);
-      if (g < 0)
-        for (int c = st.super[k]; c < st.super[k + 1]; ++c) top_rows_.push_back(c);
-    }
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b, int threads) const {
     const int n = st_->n;
@@ -229,16 +219,18 @@ class FloatSupernodal {
     Eigen::VectorXf buffer[2];
     auto forward_group = [&](int g) {
       buffer[g].setZero(n);
-      for (int s : group_[g]) forward(s, &y, g, &buffer[g]);
+      for (int s : st_->parts[g]) forward(s, &y, g, &buffer[g]);
     };
     run_both(
         threads, [&] { forward_group(0); }, [&] { forward_group(1); });
-    for (int r : top_rows_) y[r] = (y[r] + buffer[0][r]) + buffer[1][r];
-    for (int s : top_) forward(s, &y, -1, nullptr);
+    for (int r : st_->top_columns) y[r] = (y[r] + buffer[0][r]) + buffer[1][r];
+    for (int s : st_->parts[2]) forward(s, &y, -1, nullptr);
     // L^T x' = y: the top, then both groups (reading top rows, writing their own).
-    for (auto it = top_.rbegin(); it != top_.rend(); ++it) backward(*it, &y);
+    const std::vector<int>& top = st_->parts[2];
+    for (auto it = top.rbegin(); it != top.rend(); ++it) backward(*it, &y);
     auto backward_group = [&](int g) {
-      for (auto it = group_[g].rbegin(); it != group_[g].rend(); ++it) backward(*it, &y);
+      const std::vector<int>& part = st_->parts[g];
+      for (auto it = part.rbegin(); it != part.rend(); ++it) backward(*it, &y);
     };
     run_both(
         threads, [&] { backward_group(0); }, [&] { backward_group(1); });
@@ -261,7 +253,7 @@ class FloatSupernodal {
       const Eigen::VectorXf t = Ls.bottomRows(nr - nc) * y1;
       const int* rows = st.s.data() + st.pi[s] + nc;
       for (int i = 0; i < nr - nc; ++i) {
-        if (g < 0 || st.group_of[st.super_of[rows[i]]] == g)
+        if (g < 0 || st.column_group[rows[i]] == g)
           (*y)[rows[i]] -= t[i];
         else
           (*buf)[rows[i]] -= t[i];
@@ -284,13 +276,12 @@ class FloatSupernodal {
 
   const SupernodalStructure* st_ = nullptr;
   std::vector<float> x_;
-  std::vector<int> group_[2], top_, top_rows_;
 };
 
 template <typename Solver>
 class FactorOf : public Factor {
  public:
-  Eigen::VectorXd apply(const Eigen::VectorXd& b, int /*threads*/) const override {
+  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
     serial_openmp();
     return s_.solve(b);
   }
@@ -341,31 +332,32 @@ class FactorOf : public Factor {
 class SupernodalFactor : public FactorOf<SupernodalLLT> {
  public:
   explicit SupernodalFactor(bool single) : single_(single) {}
-  Eigen::VectorXd apply(const Eigen::VectorXd& b, int threads) const override {
+  Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
     if (single_ && have_float_) return float_.solve(b, threads);
-    return FactorOf<SupernodalLLT>::apply(b, threads);
+    return FactorOf<SupernodalLLT>::apply(b);
   }
 
  protected:
   bool analyze(const Eigen::SparseMatrix<double>& A) override {
     const bool reused = FactorOf<SupernodalLLT>::analyze(A);
-    prepared_ = own_ = false;
+    prepared_ = structured_ = own_ = false;
     return reused;
   }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {
     have_float_ = false;
-    if (single_ && !prepared_) {
+    if (single_ && !prepared_) {  // once per analysis: the structure, and whether ours fits
       prepared_ = true;
-      own_ = structure_.set(s_.factor()) && numeric_.prepare(structure_, A);
+      structured_ = structure_.set(s_.factor());
+      own_ = structured_ && numeric_.prepare(structure_, A);
     }
     if (own_) {
-      if (!numeric_.factorize(A, numeric_threads)) return false;
+      if (!numeric_.factorize(A, threads)) return false;
       float_.set(structure_, numeric_.values().data());
       have_float_ = true;
       return true;
     }
     const bool ok = FactorOf<SupernodalLLT>::numeric(A);
-    if (ok && single_ && structure_.set(s_.factor()) && s_.factor()->x) {
+    if (ok && structured_ && s_.factor()->x) {
       float_.set(structure_, static_cast<const double*>(s_.factor()->x));
       have_float_ = true;
     }
@@ -374,7 +366,7 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
 
  private:
   bool single_;
-  bool have_float_ = false, prepared_ = false, own_ = false;
+  bool have_float_ = false, prepared_ = false, structured_ = false, own_ = false;
   SupernodalStructure structure_;
   SupernodalNumeric numeric_;
   FloatSupernodal float_;
@@ -425,10 +417,7 @@ StepSolver::StepSolver(const StepSolverOptions& o) : impl_(std::make_unique<Impl
 
 StepSolver::~StepSolver() = default;
 
-void StepSolver::set_threads(int threads) {
-  threads_ = threads;
-  impl_->factor->numeric_threads = threads;
-}
+void StepSolver::set_threads(int threads) { impl_->factor->threads = threads; }
 
 bool StepSolver::factorize(const System& A, std::string* why) {
   const auto t0 = Clock::now();
@@ -477,10 +466,10 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
     if (A.rotate && opt_.rotated_preconditioner && !fresh) {
       Eigen::VectorXd rr = r;
       A.rotate(&rr, true);
-      z = impl_->factor->apply(rr, threads_);
+      z = impl_->factor->apply(rr);
       A.rotate(&z, false);
     } else {
-      z = impl_->factor->apply(r, threads_);
+      z = impl_->factor->apply(r);
     }
     stats_.apply_s += seconds_since(t);
     return z;

@@ -117,6 +117,16 @@ bool SupernodalStructure::set(const cholmod_factor_struct* L) {
   for (int k = ns - 1; k >= 0; --k)
     if (group_of[k] < 0 && parent[k] >= 0 && group_of[parent[k]] >= 0)
       group_of[k] = group_of[parent[k]];
+  column_group.assign(n, -1);
+  for (auto& part : parts) part.clear();
+  top_columns.clear();
+  for (int k = 0; k < ns; ++k) {
+    parts[group_of[k] < 0 ? 2 : group_of[k]].push_back(k);
+    for (int c = super[k]; c < super[k + 1]; ++c) {
+      column_group[c] = group_of[k];
+      if (group_of[k] < 0) top_columns.push_back(c);
+    }
+  }
   return true;
 }
 
@@ -165,13 +175,10 @@ bool SupernodalNumeric::factorize(const Eigen::SparseMatrix<double>& A, int thre
   for (size_t k = 0; k < dest_.size(); ++k) x_[dest_[k]] += a[k];
   for (auto& p : pending_)
     for (auto& list : p) list.clear();
-  const int ns = st.num_supernodes();
-  std::vector<int> members[3];
-  for (int k = 0; k < ns; ++k) members[st.group_of[k] < 0 ? 2 : st.group_of[k]].push_back(k);
   bool ok[3] = {true, true, true};
   auto part = [&](int g) {
     std::vector<int> map(static_cast<size_t>(st.n));
-    for (int j : members[g]) {
+    for (int j : st.parts[g]) {
       if (!factorize_supernode(j, g, &map)) {
         ok[g] = false;
         return;

@@ -18,9 +18,13 @@ namespace mvtwin::forward {
 struct SupernodalStructure {
   int n = 0;
   std::vector<int> super, pi, px, s, perm;
-  std::vector<int> parent;    ///< per supernode, -1 for a root
-  std::vector<int> group_of;  ///< per supernode: 0, 1, or -1 (the top)
-  std::vector<int> super_of;  ///< per column
+  std::vector<int> parent;        ///< per supernode, -1 for a root
+  std::vector<int> group_of;      ///< per supernode: 0, 1, or -1 (the top)
+  std::vector<int> super_of;      ///< per column
+  std::vector<int> column_group;  ///< per column: its supernode's group
+  /// The supernodes of group 0, group 1 and the top (parts[2]), each ascending (children
+  /// before parents), and the top's columns.
+  std::vector<int> parts[3], top_columns;
   size_t xsize = 0;
 
   int num_supernodes() const { return static_cast<int>(super.size()) - 1; }

@@ -30,7 +30,9 @@ bool is_parameter_name(const std::string& name);
 
 /// Every settable option with its current value, as text (for reports and result files).
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& options);
-/// The same without the options that cannot change a result (threads), for cache keys and for
+/// Whether an option can change a simulation's result (threads cannot).
+bool affects_results(const std::string& option_name);
+/// describe_options() without the options that cannot change a result, for cache keys and for
 /// deciding whether a stored run is the one asked for.
 std::vector<std::pair<std::string, std::string>> describe_result_options(
     const ClosureOptions& options);

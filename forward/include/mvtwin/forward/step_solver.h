@@ -104,7 +104,6 @@ class StepSolver {
   std::unique_ptr<Impl> impl_;
   StepSolverOptions opt_;
   Stats stats_;
-  int threads_ = 1;
 };
 
 }  // namespace mvtwin::forward
