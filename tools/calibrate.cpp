@@ -1,5 +1,6 @@
 // mvtwin calibrate: fits chordae rest lengths, stiffnesses and pressure to a patient's observed
 // closed valve (inverse/calibration.h).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -123,9 +124,21 @@ int run_calibrate(const CalibrateArgs& a) {
             << objective.frames().size() << " frame(s)" << std::endl;
   inverse::CalibrationOptions opt = a.calibration;
   const bool tty = isatty(fileno(stderr)) != 0;
-  opt.progress = [tty](int it, double best, int sims) {
-    std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations%s", tty ? "\r" : "",
-                 it, best, sims, tty ? "   " : "\n");
+  // One line per change of the simulation count or of the best error, with the time so far.
+  struct Shown {
+    int sims = -1;
+    double best = -1;
+  };
+  auto shown = std::make_shared<Shown>();
+  const auto t0 = std::chrono::steady_clock::now();
+  opt.progress = [tty, shown, t0](int it, double best, int sims) {
+    if (sims == shown->sims && best == shown->best) return;
+    shown->sims = sims;
+    shown->best = best;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::fprintf(stderr, "%s  iteration %d: best %.3f mm after %d simulations, %.1f s%s",
+                 tty ? "\r" : "", it, best, sims, elapsed, tty ? "   " : "\n");
     std::fflush(stderr);
   };
   const inverse::CalibrationResult r = inverse::calibrate(objective, opt);
