@@ -104,6 +104,12 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
     std::erase_if(m, [](const auto& kv) { return !forward::affects_results(kv.first); });
     if (!m.count("step_error_mm")) m["step_error_mm"] = "0";
     if (m["step_error_mm"] == "0") m.erase("max_dt");
+    // Likewise before settling (settle_mm = 0 makes its step and time limits irrelevant).
+    if (!m.count("settle_mm")) m["settle_mm"] = "0";
+    if (m["settle_mm"] == "0") {
+      m.erase("settle_max_dt");
+      m.erase("settle_max_s");
+    }
     return m;
   };
   const auto wanted = physics(forward::describe_options(ro));

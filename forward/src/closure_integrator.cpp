@@ -344,6 +344,15 @@ double ClosureIntegrator::local_error(const ValveState& before, const ValveState
   return 0.5 * h * dv;
 }
 
+double ClosureIntegrator::largest_motion(const ValveState& before, const ValveState& after) const {
+  double d = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    if (fixed_[3 * i]) continue;
+    d = std::max(d, (after.x.segment<3>(3 * i) - before.x.segment<3>(3 * i)).norm());
+  }
+  return d;
+}
+
 // The linearization point was checked when it was linearized; the step's end must be valid
 // too, or the next step would start from an inverted element that no smaller step can mend.
 StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) {

@@ -51,7 +51,8 @@ int nearest_surface_node(const ValveModel& m, double s, double t) {
 }  // namespace
 
 double ClosureScene::observed_time(double tau) const {
-  return sequence_.frames[sequence_.end_diastole].time_s + tau / stretch_;
+  // After the closure (settling) the boundary stays where the closed frame has it.
+  return sequence_.frames[sequence_.end_diastole].time_s + std::min(tau, duration_) / stretch_;
 }
 
 double ClosureScene::pressure(double tau) const {

@@ -76,6 +76,9 @@ const std::map<std::string, Field>& fields() {
     dbl("step_error_mm", [](ClosureOptions& o) -> double& { return o.step_error_mm; });
     dbl("max_dt", [](ClosureOptions& o) -> double& { return o.max_dt; });
     dbl("stretch", [](ClosureOptions& o) -> double& { return o.stretch; });
+    dbl("settle_mm", [](ClosureOptions& o) -> double& { return o.settle_mm; });
+    dbl("settle_max_dt", [](ClosureOptions& o) -> double& { return o.settle_max_dt; });
+    dbl("settle_max_s", [](ClosureOptions& o) -> double& { return o.settle_max_s; });
     dbl("density", [](ClosureOptions& o) -> double& { return o.density; });
     dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });
     dbl("rayleigh_stiffness", [](ClosureOptions& o) -> double& { return o.rayleigh_stiffness; });
@@ -255,6 +258,10 @@ bool affects_results(const std::string& option_name) { return option_name != "th
 std::vector<std::pair<std::string, std::string>> describe_result_options(const ClosureOptions& o) {
   std::vector<std::pair<std::string, std::string>> out = describe_options(o);
   std::erase_if(out, [](const auto& kv) { return !affects_results(kv.first); });
+  // Without settling its limits change nothing, and keys made before it existed stay valid.
+  if (!(o.settle_mm > 0)) {
+    std::erase_if(out, [](const auto& kv) { return kv.first.rfind("settle_", 0) == 0; });
+  }
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "mvtwin/forward/closure_simulation.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -32,6 +33,11 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (!(max_dt > 0 && max_dt <= 0.5))
     return bad("max_dt must be in (0, 0.5] s (steps never exceed the larger of dt and max_dt)");
   if (!(stretch > 0 && stretch <= 1000)) return bad("stretch must be in (0, 1000]");
+  if (!(settle_mm >= 0 && settle_mm <= 10))
+    return bad("settle_mm must be in [0, 10] mm (0: no settling)");
+  if (!(settle_max_dt > 0 && settle_max_dt <= 10)) return bad("settle_max_dt must be in (0, 10] s");
+  if (!(settle_max_s > 0 && settle_max_s <= 1000))
+    return bad("settle_max_s must be in (0, 1000] s");
   if (!(density > 0)) return bad("density must be positive");
   if (!(rayleigh_mass >= 0 && rayleigh_stiffness >= 0))
     return bad("Rayleigh coefficients must be >= 0");
@@ -86,7 +92,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   ClosureResult result;
   ValveState state = integrator.initial_state();
   const double T = scene.duration();
-  int steps = 0, halvings_total = 0, rejected = 0;
+  int steps = 0, halvings_total = 0, rejected = 0, settle_steps = 0;
+  double settle_s = 0.0, last_motion_mm = 0.0;
   auto finish = [&](Outcome outcome, std::string reason) {
     result.positions = state.x;
     integrator.finish(&result);
@@ -96,6 +103,9 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.steps = steps;
     sum.halvings = halvings_total;
     sum.rejected = rejected;
+    sum.settle_steps = settle_steps;
+    sum.settle_s = settle_s;
+    sum.last_step_motion_mm = last_motion_mm;
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
@@ -155,6 +165,38 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
       while (next_record <= tau + 1e-9) next_record += record_interval;
     }
   }
+  // Settling: the load held, steps doubling from dt, until a step moves the valve by less than
+  // settle_mm. Implicit Euler's large steps are damped Newton steps toward the equilibrium.
+  if (opt.settle_mm > 0) {
+    integrator.disable_friction();
+    double h = opt.dt;
+    while (settle_s < opt.settle_max_s - 1e-12) {
+      const ValveState before = state;
+      int halvings = 0;
+      StepOutcome o;
+      h = std::min(h, opt.settle_max_s - settle_s);
+      while (!(o = integrator.step(T + settle_s, h, &state)).ok()) {
+        if (halvings >= opt.max_step_halvings) {
+          result.samples.push_back(integrator.sample(T, state));
+          finish(o.outcome, o.message + " while settling, " + std::to_string(settle_s) +
+                                " s after the closure (after " + std::to_string(halvings) +
+                                " step halvings)");
+          return result;
+        }
+        ++halvings;
+        ++halvings_total;
+        h *= 0.5;
+      }
+      settle_s += h;
+      ++steps;
+      ++settle_steps;
+      last_motion_mm = integrator.largest_motion(before, state);
+      // At rest: a full-size step (a small one moves little even while the valve creeps).
+      const double h_max = std::max(opt.settle_max_dt, opt.dt);
+      if (h >= h_max - 1e-12 && last_motion_mm < opt.settle_mm) break;
+      if (halvings == 0) h = std::min(2.0 * h, h_max);
+    }
+  }
   result.samples.push_back(integrator.sample(tau, state));
   for (int c = 0; c < integrator.num_clips(); ++c)
     result.clip_gap_end_mm.push_back(integrator.clip_gap(c, state.x));
@@ -175,6 +217,9 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"halvings", s.halvings},
                  {"rejected_steps", s.rejected},
                  {"crossings", s.crossings},
+                 {"settle_steps", s.settle_steps},
+                 {"settle_s", s.settle_s},
+                 {"last_step_motion_mm", s.last_step_motion_mm},
                  {"newton_iterations", s.newton_iterations},
                  {"dofs", s.dofs},
                  {"elements", s.elements},

@@ -70,6 +70,13 @@ class ClosureIntegrator {
   /// The local error estimate of a step from `before` to `after` of size h: h/2 times the
   /// largest change of a free node's velocity, mm (StepSizeControl).
   double local_error(const ValveState& before, const ValveState& after, double h) const;
+  /// Turns contact friction off (the settling phase: the regularized friction vanishes at rest
+  /// anyway, only far more slowly).
+  void disable_friction() {
+    if (contact_) contact_->set_friction(0.0);
+  }
+  /// The largest distance a free node moved between two states, mm.
+  double largest_motion(const ValveState& before, const ValveState& after) const;
 
   // The step system, for tests and diagnostics.
 

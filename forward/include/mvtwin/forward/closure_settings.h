@@ -33,7 +33,8 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
 /// Whether an option can change a simulation's result (threads cannot).
 bool affects_results(const std::string& option_name);
 /// describe_options() without the options that cannot change a result, for cache keys and for
-/// deciding whether a stored run is the one asked for.
+/// deciding whether a stored run is the one asked for; the settling limits only with settling on
+/// (keys made before settling existed stay valid).
 std::vector<std::pair<std::string, std::string>> describe_result_options(
     const ClosureOptions& options);
 

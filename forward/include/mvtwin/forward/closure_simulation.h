@@ -37,8 +37,16 @@ struct ClosureOptions {
   /// objective rougher (a rest length recovered at 0.949 instead of >= 0.97 in
   /// tests/inverse/calibration_test.cpp): docs/forward-status.md.
   double step_error_mm = 0.0;
-  double max_dt = 0.08;             ///< the largest error-controlled step, s (dt if dt is larger)
-  double stretch = 10.0;            ///< simulated closure = stretch x observed closure duration
+  double max_dt = 0.08;   ///< the largest error-controlled step, s (dt if dt is larger)
+  double stretch = 10.0;  ///< simulated closure = stretch x observed closure duration
+  /// Settling: after the closure the pressure and the boundary are held at their end values and
+  /// steps of dt, 2 dt, 4 dt, ... (up to settle_max_dt) run until one moves no free node by
+  /// more than settle_mm: the closed valve at rest under the peak pressure, as the closed frame
+  /// shows it, instead of lagging behind the load through the damping (docs/forward-status.md).
+  /// 0 = off: the state when the load peaks (the paper's end state).
+  double settle_mm = 0.0;
+  double settle_max_dt = 0.32;      ///< the largest settling step, s
+  double settle_max_s = 10.0;       ///< settling gives up (the valve still moving) after this, s
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
@@ -88,10 +96,14 @@ struct ClosureSummary {
   Outcome outcome = Outcome::kInvalidInput;
   std::string reason;  ///< why it failed, naming the element, node or time; empty on success
   bool converged() const { return outcome == Outcome::kConverged; }
-  int steps = 0;      ///< steps taken (after halvings)
-  int halvings = 0;   ///< step retries with a halved step
-  int rejected = 0;   ///< steps redone smaller because their error estimate was too large
-  int crossings = 0;  ///< steps rejected by continuous collision detection (then halved)
+  int steps = 0;         ///< steps taken (after halvings)
+  int halvings = 0;      ///< step retries with a halved step
+  int rejected = 0;      ///< steps redone smaller because their error estimate was too large
+  int crossings = 0;     ///< steps rejected by continuous collision detection (then halved)
+  int settle_steps = 0;  ///< steps of the settling phase (included in steps)
+  double settle_s = 0;   ///< simulated time of the settling phase, s
+  /// Largest motion of a free node over the last step, mm (at rest: below settle_mm).
+  double last_step_motion_mm = 0;
   int newton_iterations = 0;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;

@@ -137,6 +137,8 @@ class SelfContact {
   /// Threads of the searches, detect() and find_crossing() (1 or 2): each splits its loop in two
   /// halves whose results are joined in order, so results do not depend on it.
   void set_threads(int threads) { threads_ = threads; }
+  /// Changes the friction coefficient (the settling phase turns friction off).
+  void set_friction(double friction) { opt_.friction = friction; }
 
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
