@@ -1,6 +1,7 @@
 #include "mvtwin/forward/febio_export.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -58,6 +59,124 @@ std::vector<std::pair<double, double>> febio_spring_curve(double initial, double
   return pts;
 }
 
+FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
+                                              double stiffness_per_area) {
+  FebioContactPotential cp;
+  cp.r_in = contact.contact_mm;
+  cp.r_out = contact.alarm_mm;
+  cp.r0_min = contact.exclusion_mm * contact.exclusion_mm;
+  // Pressure at gap g in [R_in, R_out) between parallel surfaces: (2 pi / 3) c1 g (R_out - g)^3;
+  // equal to k (d_a - d_c) at g = R_in: c1 = 3 k / (2 pi R_in (R_out - R_in)^2), and FEBio's
+  // c1 = p kc / (2 (R_out - R_in) R_in^(p + 1)).
+  const double w = cp.r_out - cp.r_in;
+  const double c1 = 3.0 * stiffness_per_area / (2.0 * M_PI * cp.r_in * w * w);
+  cp.kc = 2.0 * c1 * w * std::pow(cp.r_in, cp.p + 1.0) / cp.p;
+  return cp;
+}
+
+std::vector<FebioChordaSpring> febio_chorda_springs(const ClosureScene& scene, int chorda) {
+  const SceneChorda& ch = scene.chordae.at(static_cast<size_t>(chorda));
+  const SolidMesh& mesh = scene.model.mesh;
+  const Eigen::Vector3d tip = scene.papillary_tip(ch.tip, 0.0);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int i : ch.nodes) mean += mesh.V.row(i).transpose();
+  mean /= static_cast<double>(ch.nodes.size());
+  const double mean_length = (mean - tip).norm();
+  std::vector<FebioChordaSpring> out;
+  for (int i : ch.nodes) {
+    const double initial = (mesh.V.row(i).transpose() - tip).norm();
+    out.push_back(
+        {i, 1.0 / static_cast<double>(ch.nodes.size()), initial, mean_length, ch.rest_length});
+  }
+  return out;
+}
+
+std::vector<int> febio_node_order(const SolidMesh& mesh) {
+  const int n = mesh.num_nodes(), npe = mesh.nodes_per_element();
+  std::vector<std::set<int>> adj(static_cast<size_t>(n));
+  for (int e = 0; e < mesh.num_elements(); ++e)
+    for (int a = 0; a < npe; ++a)
+      for (int b = 0; b < npe; ++b)
+        if (a != b) adj[mesh.T(e, a)].insert(mesh.T(e, b));
+  auto degree = [&](int i) { return adj[i].size(); };
+  std::vector<int> order;
+  std::vector<char> seen(static_cast<size_t>(n), 0);
+  // Breadth-first from `start`, neighbours by increasing degree; returns the last level's node
+  // of least degree (a pseudo-peripheral node when started from one).
+  auto bfs = [&](int start, std::vector<int>* out) {
+    std::vector<char> mark(static_cast<size_t>(n), 0);
+    std::vector<int> level{start}, all;
+    mark[start] = 1;
+    int last = start;
+    while (!level.empty()) {
+      std::vector<int> next;
+      for (int i : level) {
+        all.push_back(i);
+        std::vector<int> nb;
+        for (int j : adj[i])
+          if (!mark[j] && !seen[j]) nb.push_back(j);
+        std::stable_sort(nb.begin(), nb.end(), [&](int x, int y) { return degree(x) < degree(y); });
+        for (int j : nb) {
+          mark[j] = 1;
+          next.push_back(j);
+        }
+      }
+      if (!next.empty()) {
+        last = *std::min_element(next.begin(), next.end(),
+                                 [&](int x, int y) { return degree(x) < degree(y); });
+      }
+      level = std::move(next);
+    }
+    if (out) *out = all;
+    return last;
+  };
+  for (int s = 0; s < n; ++s) {
+    if (seen[s]) continue;
+    int start = s;
+    for (int i = s; i < n; ++i)  // least degree node of this component first
+      if (!seen[i] && degree(i) < degree(start)) start = i;
+    start = bfs(bfs(start, nullptr), nullptr);
+    std::vector<int> comp;
+    bfs(start, &comp);
+    for (int i : comp) seen[i] = 1;
+    order.insert(order.end(), comp.begin(), comp.end());
+  }
+  std::reverse(order.begin(), order.end());
+  return order;
+}
+
+std::vector<RimFace> rim_faces(const ClosureScene& scene) {
+  const ValveModel& m = scene.model;
+  const SolidMesh& mesh = m.mesh;
+  std::vector<char> held(static_cast<size_t>(mesh.num_nodes()), 0);
+  for (const PrescribedNode& p : scene.prescribed) held[p.node] = 1;
+  const int surface = m.surface_nodes, layers = m.options.layers;
+  auto layer = [&](int corner) { return corner / surface; };
+  constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  std::map<std::array<int, 3>, std::pair<int, int>> faces;  // sorted corners -> (element, face)
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    for (int f = 0; f < 4; ++f) {
+      std::array<int, 3> k = {mesh.T(e, kFace[f][0]), mesh.T(e, kFace[f][1]),
+                              mesh.T(e, kFace[f][2])};
+      std::sort(k.begin(), k.end());
+      auto [it, fresh] = faces.try_emplace(k, e, f);
+      if (!fresh) it->second.first = -1;  // shared by two elements: inside
+    }
+  }
+  std::vector<RimFace> out;
+  for (const auto& [k, ef] : faces) {
+    const auto [e, f] = ef;
+    if (e < 0) continue;
+    const int a = mesh.T(e, kFace[f][0]), b = mesh.T(e, kFace[f][1]), c = mesh.T(e, kFace[f][2]);
+    const int la = layer(a);
+    if (la == layer(b) && la == layer(c) && (la == 0 || la == layers)) continue;  // a surface
+    if (held[a] && held[b] && held[c]) continue;                                  // the annulus
+    // kFace lists each face counter-clockwise seen from outside the element.
+    out.push_back({a, b, c, mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1});
+  }
+  return out;
+}
+
 void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
                  const ClosureOptions& opt, const std::string& comment) {
   const ValveModel& m = scene.model;
@@ -65,6 +184,11 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const bool quadratic = mesh.order == TetOrder::kQuadratic;
   const int n = mesh.num_nodes();
   const double T = scene.duration();
+  // FEBio ids: leaflet nodes in reverse Cuthill-McKee order, then the papillary tips.
+  const std::vector<int> order = febio_node_order(mesh);
+  std::vector<int> id_of(static_cast<size_t>(n));
+  for (int k = 0; k < n; ++k) id_of[order[k]] = k + 1;
+  auto nid = [&](int node) { return id_of[static_cast<size_t>(node)]; };
   // Load curves sampled often enough for the C1 motion between frames and the smoothstep.
   const int samples = 41;
   auto sample_time = [&](int k) { return T * k / (samples - 1); };
@@ -90,12 +214,31 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << num(opt.rayleigh_mass) << " 1/s, alpha_K = " << num(opt.rayleigh_stiffness)
      << " s; the analysis is quasi-static instead), self-contact within one leaflet, the\n"
      << "contact wall below the minimum distance (wall factor " << num(opt.contact.wall_factor)
-     << "), the inversion guard, the clip phase.\n-->\n";
+     << "; FEBio's potential has its own wall, kc / r^p, below R_in), friction ("
+     << num(opt.contact.friction) << " in mvtwin, regularized below a slip of "
+     << num(opt.contact.friction_slip_mm_per_s)
+     << " mm/s: a drag that a static analysis has no velocity for, and that vanishes at rest),\n"
+     << "the inversion guard, the clip phase.\n"
+     << "Choices: nodes numbered by reverse Cuthill-McKee for a small skyline profile (node set\n"
+     << "mvtwin_order lists the FEBio id of mvtwin's nodes 0, 1, ... in order); an automatic time\n"
+     << "stepper that halves failed steps (25 retries); leaflet contact as FEBio's contact\n"
+     << "potential with mvtwin's penalty, distances and 4 mm neighbour exclusion, on the atrial,\n"
+     << "ventricular and rim (free edge, commissural) faces; each chorda pulls its whole\n"
+     << "cross-section, one spring of 1/k of the force per node, whose curve reads the node's\n"
+     << "elongation as the mean point's (mvtwin pulls the mean point: equal while the section\n"
+     << "does not rotate). FEBio 4 compares R0_min with the squared reference distance, hence\n"
+     << "R0_min = 4^2 mm^2.\n-->\n";
   os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
   os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
      << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
-     << num(opt.dt) << "</step_size>\n    <solver type=\"solid\">\n"
-     << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n    </solver>\n"
+     << num(opt.dt) << "</step_size>\n"
+     << "    <time_stepper type=\"default\">\n      <max_retries>25</max_retries>\n"
+     << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
+     << "</dtmin>\n      <dtmax>" << num(opt.dt) << "</dtmax>\n"
+     << "      <aggressiveness>0</aggressiveness>\n      <cutback>0.5</cutback>\n"
+     << "    </time_stepper>\n    <solver type=\"solid\">\n"
+     << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
+     << "      <optimize_bw>1</optimize_bw>\n    </solver>\n"
      << "  </Control>\n";
 
   // Materials.
@@ -116,8 +259,9 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
 
   // Mesh: leaflet nodes 1..n, papillary tips n+1, n+2.
   os << "  <Mesh>\n    <Nodes name=\"leaflets\">\n";
-  for (int i = 0; i < n; ++i)
-    os << "      <node id=\"" << i + 1 << "\">" << vec(mesh.V.row(i).transpose()) << "</node>\n";
+  for (int k = 0; k < n; ++k)
+    os << "      <node id=\"" << k + 1 << "\">" << vec(mesh.V.row(order[k]).transpose())
+       << "</node>\n";
   os << "    </Nodes>\n    <Nodes name=\"papillary_tips\">\n";
   for (int k = 0; k < 2; ++k)
     os << "      <node id=\"" << n + 1 + k << "\">" << vec(scene.papillary_tip(k, 0.0))
@@ -135,25 +279,28 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
     for (int e : elements_of[k]) {
       // VTK and FEBio order the tet10 nodes alike: corners, then edges 12, 23, 31, 14, 24, 34.
       os << "      <elem id=\"" << ++eid << "\">";
-      for (int a = 0; a < npe; ++a) os << (a ? "," : "") << mesh.T(e, a) + 1;
+      for (int a = 0; a < npe; ++a) os << (a ? "," : "") << nid(mesh.T(e, a));
       os << "</elem>\n";
     }
     os << "    </Elements>\n";
   }
   // Prescribed nodes: one node set each (one boundary condition per node and axis).
   for (const PrescribedNode& p : scene.prescribed)
-    os << "    <NodeSet name=\"annulus_" << p.node + 1 << "\">" << p.node + 1 << "</NodeSet>\n";
+    os << "    <NodeSet name=\"annulus_" << nid(p.node) << "\">" << nid(p.node) << "</NodeSet>\n";
+  os << "    <NodeSet name=\"mvtwin_order\">";
+  for (int i = 0; i < n; ++i) os << (i ? "," : "") << nid(i);
+  os << "</NodeSet>\n";
   for (int k = 0; k < 2; ++k)
     os << "    <NodeSet name=\"papillary_tip_" << k + 1 << "\">" << n + 1 + k << "</NodeSet>\n";
   // Surfaces: the pressure surface and each leaflet's two surfaces for contact.
   const char* facet_type = quadratic ? "tri6" : "tri3";
-  auto facet = [&](int id, int a, int b, int c) {
+  auto facet = [&](int fid_, int a, int b, int c) {
     std::ostringstream f;
-    f << "      <" << facet_type << " id=\"" << id << "\">" << a + 1 << "," << b + 1 << ","
-      << c + 1;
+    f << "      <" << facet_type << " id=\"" << fid_ << "\">" << nid(a) << "," << nid(b) << ","
+      << nid(c);
     if (quadratic) {
-      f << "," << mesh.mid_node(a, b) + 1 << "," << mesh.mid_node(b, c) + 1 << ","
-        << mesh.mid_node(c, a) + 1;
+      f << "," << nid(mesh.mid_node(a, b)) << "," << nid(mesh.mid_node(b, c)) << ","
+        << nid(mesh.mid_node(c, a));
     }
     f << "</" << facet_type << ">\n";
     return f.str();
@@ -162,6 +309,7 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   int fid = 0;
   for (const PressureFace& pf : scene.pressure_faces) os << facet(++fid, pf.a, pf.b, pf.c);
   os << "    </Surface>\n";
+  const std::vector<RimFace> rims = rim_faces(scene);
   for (int k = 0; k < 2; ++k) {
     os << "    <Surface name=\"" << domains[k] << "_surfaces\">\n";
     fid = 0;
@@ -176,6 +324,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
         os << facet(++fid, a, b, c);
       }
     }
+    for (const RimFace& r : rims)
+      if (r.leaflet == k) os << facet(++fid, r.a, r.b, r.c);
     os << "    </Surface>\n";
   }
   os << "    <SurfacePair name=\"leaflets\">\n      <primary>anterior_surfaces</primary>\n"
@@ -185,7 +335,7 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
     std::string name;
     int a, b;        // FEBio node ids
     double scale;    // share of the force
-    double initial;  // length in the reference configuration, mm
+    double initial;  // the curve's reference length, mm (chordae: the mean point's)
     double rest;     // rest length, mm
     const ChordaLaw* law;
     double k;
@@ -204,15 +354,11 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   };
   for (size_t c = 0; c < scene.chordae.size(); ++c) {
     const SceneChorda& ch = scene.chordae[c];
-    const auto mid = middle(ch.nodes);
-    for (size_t j = 0; j < mid.size(); ++j) {
-      const double initial =
-          (mesh.V.row(mid[j]).transpose() - scene.papillary_tip(ch.tip, 0.0)).norm();
-      std::ostringstream name;
-      name << "chorda_" << c + 1;
-      if (mid.size() > 1) name << "_" << j + 1;
-      springs.push_back({name.str(), mid[j] + 1, n + 1 + ch.tip,
-                         1.0 / static_cast<double>(mid.size()), initial, ch.rest_length, &ch.law,
+    const auto parts = febio_chorda_springs(scene, static_cast<int>(c));
+    for (size_t j = 0; j < parts.size(); ++j) {
+      const FebioChordaSpring& sp = parts[j];
+      springs.push_back({"chorda_" + std::to_string(c + 1) + "_" + std::to_string(j + 1),
+                         nid(sp.node), n + 1 + ch.tip, sp.scale, sp.mean_length, sp.rest, &ch.law,
                          0.0});
     }
   }
@@ -220,8 +366,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
     const SceneSpring& sp = scene.springs[c];
     const int a = middle(sp.a).front(), b = middle(sp.b).front();
     const double initial = (mesh.V.row(a) - mesh.V.row(b)).norm();
-    springs.push_back({"clip_" + std::to_string(c + 1), a + 1, b + 1, 1.0, initial, sp.rest_length,
-                       nullptr, sp.stiffness});
+    springs.push_back({"clip_" + std::to_string(c + 1), nid(a), nid(b), 1.0, initial,
+                       sp.rest_length, nullptr, sp.stiffness});
   }
   for (const Spring& s : springs)
     os << "    <DiscreteSet name=\"" << s.name << "\">\n      <delem>" << s.a << "," << s.b
@@ -263,9 +409,9 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
         for (int k = 0; k < samples; ++k)
           pts.emplace_back(sample_time(k), positions[k][3 * p.node + d] - mesh.V(p.node, d));
         const int id =
-            add_curve("annulus_" + std::to_string(p.node + 1) + "_" + axes[d], pts, "CONSTANT");
-        os << "    <bc name=\"annulus_" << p.node + 1 << "_" << axes[d] << "\" node_set=\"annulus_"
-           << p.node + 1 << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
+            add_curve("annulus_" + std::to_string(nid(p.node)) + "_" + axes[d], pts, "CONSTANT");
+        os << "    <bc name=\"annulus_" << nid(p.node) << "_" << axes[d] << "\" node_set=\"annulus_"
+           << nid(p.node) << "\" type=\"prescribed displacement\">\n      <dof>" << axes[d]
            << "</dof>\n      <value lc=\"" << id << "\">1</value>\n      <relative>0</relative>\n"
            << "    </bc>\n";
       }
@@ -305,13 +451,13 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   }
 
   if (opt.contact.enabled) {
+    const FebioContactPotential cp = febio_contact_potential(
+        opt.contact, opt.contact.stiffness_per_area(scene.peak_pressure_mpa));
     os << "  <Contact>\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" "
-          "type=\"sliding-elastic\">\n"
-       << "      <two_pass>1</two_pass>\n      <auto_penalty>1</auto_penalty>\n"
-       << "      <penalty>1</penalty>\n      <fric_coeff>" << num(opt.contact.friction)
-       << "</fric_coeff>\n      <search_tol>0.01</search_tol>\n      <search_radius>"
-       << num(opt.contact.alarm_mm) << "</search_radius>\n      <gaptol>0</gaptol>\n"
-       << "      <symmetric_stiffness>0</symmetric_stiffness>\n    </contact>\n  </Contact>\n";
+          "type=\"contact potential\">\n"
+       << "      <kc>" << num(cp.kc) << "</kc>\n      <p>" << num(cp.p) << "</p>\n      <R_in>"
+       << num(cp.r_in) << "</R_in>\n      <R_out>" << num(cp.r_out) << "</R_out>\n      <R0_min>"
+       << num(cp.r0_min) << "</R0_min>\n      <w_tol>0</w_tol>\n    </contact>\n  </Contact>\n";
   }
 
   // Discrete springs: force against elongation from the reference length.

@@ -1,11 +1,14 @@
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <set>
 #include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_scene.h"
@@ -40,6 +43,19 @@ double evaluate(const std::vector<std::pair<double, double>>& c, double x) {
   return y0 + (y1 - y0) * (x - x0) / (x1 - x0);
 }
 
+// Virtual patient 21 on a 12 x 6 model, optionally with a clip.
+ClosureOptions small_options(bool clip = false) {
+  ClosureOptions o;
+  o.model.ures = 12;
+  o.model.vres = 6;
+  if (clip) o.clips.push_back({});
+  return o;
+}
+ClosureScene small_scene(bool clip = false) {
+  const Patient p = make_virtual_patient(21);
+  return make_closure_scene(p.sequence, p.truth->parameters, small_options(clip));
+}
+
 // The exported spring curve reproduces the chorda law: at any elongation the force is A0 sigma
 // of the strain relative to the rest length (not the reference length), zero when slack.
 TEST(FebioExport, SpringCurveFollowsTheChordaLaw) {
@@ -65,12 +81,8 @@ TEST(FebioExport, SpringCurveFollowsTheChordaLaw) {
 // end node and clip, load curves numbered 1..n and all referenced ones defined); the pressure
 // profile and tips in boundary.csv are the scene's.
 TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
-  const Patient p = make_virtual_patient(21);
-  ClosureOptions o;
-  o.model.ures = 12;
-  o.model.vres = 6;
-  o.clips.push_back({});
-  const ClosureScene scene = make_closure_scene(p.sequence, p.truth->parameters, o);
+  const ClosureOptions o = small_options(true);
+  const ClosureScene scene = small_scene(true);
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_scene_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   const auto files = export_scene(scene, o, dir, "test\nsecond line -- with dashes");
@@ -85,9 +97,28 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "<node id="), mesh.num_nodes() + 2);
   EXPECT_EQ(count(feb, "type=\"prescribed displacement\""),
             3 * (static_cast<int>(scene.prescribed.size()) + 2));
-  // One spring per chorda (cross-sections of 3 nodes: the middle one) and per clip.
+  // One spring per node of each chorda's cross-section, one per clip.
+  size_t chorda_springs = 0;
+  for (const SceneChorda& c : scene.chordae) chorda_springs += c.nodes.size();
   EXPECT_EQ(count(feb, "type=\"nonlinear spring\""),
-            static_cast<int>(scene.chordae.size() + scene.springs.size()));
+            static_cast<int>(chorda_springs + scene.springs.size()));
+  // The automatic time stepper, FEBio's own bandwidth optimization, and the contact potential
+  // with the parameters derived from mvtwin's penalty.
+  EXPECT_EQ(count(feb, "<time_stepper type=\"default\">"), 1);
+  EXPECT_EQ(count(feb, "<max_retries>25</max_retries>"), 1);
+  EXPECT_EQ(count(feb, "<optimize_bw>1</optimize_bw>"), 1);
+  EXPECT_EQ(count(feb, "type=\"contact potential\""), 1);
+  const FebioContactPotential cp =
+      febio_contact_potential(o.contact, o.contact.stiffness_per_area(scene.peak_pressure_mpa));
+  const auto value_of = [&feb](const std::string& tag) {
+    const size_t at = feb.find("<" + tag + ">");
+    return at == std::string::npos ? -1.0 : std::stod(feb.substr(at + tag.size() + 2, 24));
+  };
+  EXPECT_NEAR(value_of("kc"), cp.kc, 1e-9 * cp.kc);
+  EXPECT_EQ(value_of("R_in"), o.contact.contact_mm);
+  EXPECT_EQ(value_of("R_out"), o.contact.alarm_mm);
+  EXPECT_EQ(value_of("R0_min"), o.contact.exclusion_mm * o.contact.exclusion_mm);
+  EXPECT_EQ(count(feb, "sliding-elastic"), 0);
   EXPECT_EQ(count(feb, "<ElementData type=\"mat_axis\""), 2);
   EXPECT_EQ(count(feb, "--"), 2) << "XML comments must not contain -- (only <!-- and -->)";
   const int curves = count(feb, "<load_controller id=");
@@ -131,6 +162,166 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_NEAR(field(last, 0), scene.duration(), 1e-9);
   EXPECT_NEAR(field(first, 2), scene.papillary_tip(0, 0.0).x(), 1e-6);
   fs::remove_all(dir);
+}
+
+// FEBio's contact potential as exported: between two parallel surfaces at gap g the pressure
+// 2 pi g int_g^R_out f(r) dr (f: FEBio's PotentialDerive, integrated here numerically) is
+// mvtwin's penalty k (d_a - d_c) at the contact distance, zero from the alarm distance on, and
+// grows monotonically as the gap closes.
+TEST(FebioExport, ContactPotentialMatchesThePenaltyAtTheContactDistance) {
+  SelfContactOptions c;
+  const double k = c.stiffness_per_area(0.016);
+  const FebioContactPotential cp = febio_contact_potential(c, k);
+  const double w = cp.r_out - cp.r_in;
+  const double c1 = 0.5 * cp.p * cp.kc / (w * std::pow(cp.r_in, cp.p + 1.0));
+  const double c2 = cp.kc / std::pow(cp.r_in, cp.p) - c1 * w * w;
+  auto f = [&](double r) {
+    if (r < cp.r_in) return cp.kc / std::pow(r, cp.p) - c2;
+    if (r < cp.r_out) return c1 * (r - cp.r_out) * (r - cp.r_out);
+    return 0.0;
+  };
+  auto pressure = [&](double g) {
+    const int steps = 20000;
+    double sum = 0.0;
+    const double h = (cp.r_out - g) / steps;
+    for (int i = 0; i < steps; ++i) sum += f(g + (i + 0.5) * h) * h;  // midpoint rule
+    return 2.0 * M_PI * g * sum;
+  };
+  EXPECT_NEAR(pressure(c.contact_mm), k * (c.alarm_mm - c.contact_mm),
+              1e-6 * k * (c.alarm_mm - c.contact_mm));
+  EXPECT_EQ(pressure(c.alarm_mm), 0.0);
+  double last = 0.0;
+  for (double g = 0.59; g > 0.05; g -= 0.01) {
+    const double pg = pressure(g);
+    EXPECT_GT(pg, last) << "gap " << g;
+    last = pg;
+  }
+  EXPECT_DOUBLE_EQ(cp.r0_min, c.exclusion_mm * c.exclusion_mm);
+}
+
+// Each chorda's springs: one per cross-section node with equal shares, rest lengths shifted so
+// that the springs together pull with the force of mvtwin's chorda at its mean point, up to the
+// law's slope times how far one spring's elongation strays from the mean point's (second order:
+// the tip moved along the chorda; checked to be a small part of the force), and never one
+// surface node alone.
+TEST(FebioExport, ChordaSpringsPullLikeTheMeanPoint) {
+  const ClosureScene scene = small_scene();
+  const SolidMesh& mesh = scene.model.mesh;
+  for (int c = 0; c < static_cast<int>(scene.chordae.size()); ++c) {
+    const SceneChorda& ch = scene.chordae[c];
+    const auto parts = febio_chorda_springs(scene, c);
+    ASSERT_EQ(parts.size(), ch.nodes.size());
+    ASSERT_GT(parts.size(), 1u);
+    double shares = 0.0;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int i : ch.nodes) mean += mesh.V.row(i).transpose();
+    mean /= static_cast<double>(ch.nodes.size());
+    const Eigen::Vector3d tip = scene.papillary_tip(ch.tip, 0.0);
+    const Eigen::Vector3d dir = (tip - mean).normalized();
+    for (const FebioChordaSpring& sp : parts) shares += sp.scale;
+    EXPECT_NEAR(shares, 1.0, 1e-12);
+    for (double pull : {0.0, 0.5, 1.0, 2.0}) {  // the tip moved away along the chorda, mm
+      const Eigen::Vector3d t = tip + pull * dir;
+      const double l_mean = (t - mean).norm();
+      const double expected = ch.law.area * ch.law.stress(l_mean / ch.rest_length - 1.0);
+      double force = 0.0, mismatch = 0.0;
+      for (const FebioChordaSpring& sp : parts) {
+        const double l = (t - mesh.V.row(sp.node).transpose()).norm();
+        EXPECT_NEAR(sp.initial, (tip - mesh.V.row(sp.node).transpose()).norm(), 1e-12);
+        const auto curve = febio_spring_curve(sp.mean_length, sp.rest, &ch.law, 0.0);
+        force += sp.scale * evaluate(curve, l - sp.initial);
+        // How far this spring's elongation strays from the mean point's (second order in the
+        // cross-section's size over the chorda's length).
+        mismatch = std::max(mismatch, std::abs((l - sp.initial) - (l_mean - sp.mean_length)));
+      }
+      // Exact up to the law's stiffest slope times that mismatch.
+      const double slope = ch.law.area * std::max(ch.law.e_low, ch.law.e_high) / ch.rest_length;
+      EXPECT_NEAR(force, expected, 1e-9 + slope * mismatch) << "chorda " << c << " pull " << pull;
+      if (expected > 0.01) {
+        EXPECT_LT(slope * mismatch, 0.2 * expected) << "chorda " << c;
+      }
+    }
+  }
+}
+
+// The node numbering is a permutation and shrinks the skyline profile (sum over rows of the
+// distance to the row's first nonzero in the node graph) well below mvtwin's own numbering
+// (corner nodes, then mid-edge nodes).
+TEST(FebioExport, NodeOrderShrinksTheProfile) {
+  const Patient p = make_virtual_patient(1);
+  ClosureOptions o;
+  o.model.ures = 30;
+  o.model.vres = 30;
+  const ClosureScene scene = make_closure_scene(p.sequence, p.truth->parameters, o);
+  const SolidMesh& mesh = scene.model.mesh;
+  const std::vector<int> order = febio_node_order(mesh);
+  ASSERT_EQ(static_cast<int>(order.size()), mesh.num_nodes());
+  std::vector<int> rank(order.size(), -1);
+  for (size_t k = 0; k < order.size(); ++k) {
+    ASSERT_EQ(rank[order[k]], -1) << "node " << order[k] << " numbered twice";
+    rank[order[k]] = static_cast<int>(k);
+  }
+  auto profile = [&](auto&& number) {
+    std::vector<long> first(order.size());
+    for (size_t i = 0; i < first.size(); ++i) first[i] = number(static_cast<int>(i));
+    for (int e = 0; e < mesh.num_elements(); ++e)
+      for (int a = 0; a < mesh.nodes_per_element(); ++a)
+        for (int b = 0; b < mesh.nodes_per_element(); ++b) {
+          const int i = mesh.T(e, a), j = mesh.T(e, b);
+          first[i] = std::min<long>(first[i], number(j));
+        }
+    long sum = 0;
+    for (size_t i = 0; i < first.size(); ++i) sum += number(static_cast<int>(i)) - first[i];
+    return sum;
+  };
+  const long natural = profile([](int i) { return i; });
+  const long reordered = profile([&](int i) { return rank[i]; });
+  std::cout << "profile (nodes): mvtwin order " << natural << ", FEBio order " << reordered << "\n";
+  EXPECT_LT(reordered, natural / 4);
+}
+
+// Rim faces: boundary faces of the elements, none on the atrial or ventricular surface or
+// wholly held; they include every free-edge corner node of both leaflets, and each faces away
+// from its element.
+TEST(FebioExport, RimFacesCoverTheFreeEdge) {
+  const ClosureScene scene = small_scene();
+  const ValveModel& m = scene.model;
+  const std::vector<RimFace> rims = rim_faces(scene);
+  ASSERT_FALSE(rims.empty());
+  std::set<int> on_rim;
+  for (const RimFace& r : rims) {
+    on_rim.insert({r.a, r.b, r.c});
+    const int la = r.a / m.surface_nodes;
+    EXPECT_FALSE(la == r.b / m.surface_nodes && la == r.c / m.surface_nodes)
+        << "a rim face on one surface";
+  }
+  int free_edge = 0;
+  for (int i = 0; i < m.surface_nodes; ++i) {
+    if (m.surface_st(i, 1) < 1.0 - 1e-9) continue;  // t = 1: the free edge
+    ++free_edge;
+    EXPECT_TRUE(on_rim.count(m.node(i, 0)) && on_rim.count(m.node(i, m.options.layers)))
+        << "free-edge node " << i << " not on a rim face";
+  }
+  EXPECT_GT(free_edge, 0);
+  // Outward: the element's remaining corner lies behind each rim face.
+  const SolidMesh& mesh = m.mesh;
+  for (const RimFace& r : rims) {
+    const Eigen::Vector3d a = mesh.V.row(r.a), b = mesh.V.row(r.b), c = mesh.V.row(r.c);
+    const Eigen::Vector3d nrm = (b - a).cross(c - a);
+    bool found = false;
+    for (int e = 0; e < mesh.num_elements() && !found; ++e) {
+      std::set<int> corners;
+      for (int k = 0; k < 4; ++k) corners.insert(mesh.T(e, k));
+      if (!corners.count(r.a) || !corners.count(r.b) || !corners.count(r.c)) continue;
+      for (int k = 0; k < 4; ++k) {
+        const int d = mesh.T(e, k);
+        if (d == r.a || d == r.b || d == r.c) continue;
+        EXPECT_LT(nrm.dot(Eigen::Vector3d(mesh.V.row(d)) - a), 0.0) << "rim face facing in";
+        found = true;
+      }
+    }
+    EXPECT_TRUE(found);
+  }
 }
 
 }  // namespace

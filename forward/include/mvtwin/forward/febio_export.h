@@ -15,18 +15,19 @@ namespace mvtwin::forward {
 ///     posterior, each an "orthotropic elastic" material with the transversely isotropic
 ///     constants (E1 = E_fibre, E2 = E3 = E_cross, G12 = G31, G23 = E2 / (2 (1 + nu23)),
 ///     v12 = v23 = nu, v31 = nu E3 / E1) and a per-element material axis (a = the fibre);
-///   - each chorda as a "nonlinear spring" from its insertion cross-section's middle node (two
-///     springs of half force when that cross-section has an even number of nodes) to a node
-///     at its papillary tip, with the continuous bilinear, tension-only law as a force-elongation
-///     curve that accounts for the rest length (end-diastolic length x factor);
+///   - each chorda as "nonlinear spring"s from every node of its insertion cross-section to a
+///     node at its papillary tip (febio_chorda_springs), with the continuous bilinear,
+///     tension-only law as a force-elongation curve that accounts for the rest length;
 ///   - clips as tension-only linear springs (FEBio has no clip phase: their rest length is the
 ///     target from the start);
 ///   - the annulus nodes and papillary tips as prescribed displacements, one load curve per
 ///     node and axis, sampled from the same C1 interpolation of the image frames;
 ///   - the follower pressure on the ventricular surface (tri6 / tri3 facets) with the same
 ///     smoothstep profile;
-///   - leaflet contact as a sliding-elastic contact between the anterior and the posterior
-///     leaflet's surfaces, friction as in the options.
+///   - leaflet contact as FEBio's frictionless "contact potential" (febio_contact_potential)
+///     between the anterior and the posterior leaflet's surfaces and rims (rim_faces);
+///   - nodes numbered for a small profile (febio_node_order; the node set `mvtwin_order` maps
+///     them back), an automatic time stepper with retries.
 /// Units are mvtwin's (mm, s, N, MPa, t). What FEBio cannot express is said in the file's
 /// header comment: Rayleigh damping (the analysis is quasi-static), self-contact within one
 /// leaflet, the contact wall law and the inversion guard. `comment` (provenance) is written at
@@ -37,6 +38,48 @@ namespace mvtwin::forward {
 /// null, linear stiffness k N/mm).
 std::vector<std::pair<double, double>> febio_spring_curve(double initial, double rest,
                                                           const ChordaLaw* law, double k);
+
+/// FEBio's "contact potential" (FEBioMech/FEContactPotential.cpp) between the two leaflets with
+/// mvtwin's penalty: a repulsion f(r) between integration points of the two surfaces, weighted by
+/// both areas, f = c1 (r - R_out)^2 for R_in <= r < R_out and kc / r^p - c2 closer (a wall).
+/// Between two parallel surfaces at gap g it gives the pressure 2 pi g int_g^R_out f(r) dr:
+/// zero from the alarm distance (R_out) and equal to mvtwin's k (d_a - d_c) at the contact
+/// distance (R_in), where the wall takes over.
+struct FebioContactPotential {
+  double kc = 0, p = 4, r_in = 0, r_out = 0;
+  /// Surface points closer than this in the reference configuration never pair (mvtwin's
+  /// neighbour exclusion). FEBio 4 compares it with the squared reference distance, so this is
+  /// exclusion_mm^2 (mm^2).
+  double r0_min = 0;
+};
+FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
+                                              double stiffness_per_area);
+
+/// One spring of a chorda in FEBio: from a node of its insertion cross-section to its papillary
+/// tip. Each of the cross-section's k nodes gets one spring of force share 1/k whose force curve
+/// (febio_spring_curve(mean_length, rest, ...)) reads the elongation from the node's own
+/// end-diastolic length as the mean point's: while the cross-section moves without rotating, the
+/// springs together pull exactly as mvtwin's chorda does from the mean point.
+struct FebioChordaSpring {
+  int node = 0;            ///< mvtwin node (0-based)
+  double scale = 1;        ///< share of the force
+  double initial = 0;      ///< node to tip at end-diastole, mm (FEBio's reference length)
+  double mean_length = 0;  ///< the cross-section's mean point to the tip at end-diastole, mm
+  double rest = 0;         ///< the chorda's rest length, mm
+};
+std::vector<FebioChordaSpring> febio_chorda_springs(const ClosureScene& scene, int chorda);
+
+/// Node numbering for FEBio: reverse Cuthill-McKee on the elements' node graph, so that the
+/// skyline solver's profile stays small. order[k] is the mvtwin node numbered k + 1.
+std::vector<int> febio_node_order(const SolidMesh& mesh);
+
+/// The boundary faces of the leaflets' elements that are neither atrial nor ventricular nor
+/// held (annulus): the free edge and the commissural sides, as corner triples oriented outward,
+/// with the leaflet (0 anterior, 1 posterior).
+struct RimFace {
+  int a, b, c, leaflet;
+};
+std::vector<RimFace> rim_faces(const ClosureScene& scene);
 
 void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
                  const ClosureOptions& options, const std::string& comment);
