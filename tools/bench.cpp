@@ -190,6 +190,35 @@ int run_bench_closure(const BenchClosureArgs& a) {
             << s.elements << "  assembly_s " << s.assembly_s << "  solve_s " << s.solve_s
             << "  contact_s " << s.contact_s << "\nerror_mean_mm " << e.mean << "  error_max_mm "
             << e.max << " (against the reference)\n";
+  if (a.rest) {
+    // The same settings, then held at peak pressure until at rest: how far the timed run's end
+    // lags behind the valve at rest, which the reference (same loading) shares.
+    std::vector<std::string> rs = a.sets;
+    rs.insert(rs.end(), kRestSettings.begin(), kRestSettings.end());
+    std::cout << "at-rest run (" << join(kRestSettings) << ") ..." << std::endl;
+    const Run rest = run(p, with_settings({}, rs));
+    const auto& rsum = rest.result.summary;
+    if (!rsum.converged()) {
+      std::cout << "at-rest run failed: " << rsum.reason << "\n";
+      j["rest_status"] = "failed";
+    } else {
+      const DistanceStats lag =
+          symmetric_surface_distance(best.result.samples.back().la_surface.triangulate(),
+                                     rest.result.samples.back().la_surface.triangulate())
+              .symmetric;
+      j["rest_status"] = "converged";
+      j["rest_lag_mean_mm"] = lag.mean;
+      j["rest_lag_p95_mm"] = lag.p95;
+      j["rest_lag_max_mm"] = lag.max;
+      j["rest_settle_steps"] = rsum.settle_steps;
+      j["rest_settle_s"] = rsum.settle_s;
+      j["rest_last_step_motion_mm"] = rsum.last_step_motion_mm;
+      std::cout << "rest_lag_mean_mm " << lag.mean << "  rest_lag_max_mm " << lag.max
+                << " (against the same run settled: " << rsum.settle_steps << " steps, "
+                << rsum.settle_s << " s, last step " << rsum.last_step_motion_mm << " mm)\n";
+    }
+    j["rest_settings"] = kRestSettings;
+  }
   write_json(a.json_path, j);
   return kExitOk;
 }
@@ -264,7 +293,9 @@ void register_bench(CLI::App& app, Context& ctx) {
         "otherwise and is repeated (--repeat; wall_s is the fastest, all are listed). The\n"
         "reference is a finer, smaller-step run (--ref-set); error_mean_mm / error_max_mm are\n"
         "the symmetric point-to-mesh distances between the end surfaces. --ref-file keeps the\n"
-        "reference as a simulation file and reuses it when its settings match.");
+        "reference as a simulation file and reuses it when its settings match. rest_lag_mean_mm /\n"
+        "rest_lag_max_mm: the timed run's end against the same settings held at peak pressure\n"
+        "until at rest (settling; --no-rest skips it): the damping lag the reference shares.");
     auto a = std::make_shared<BenchClosureArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for the timed run (repeatable)");
@@ -273,6 +304,9 @@ void register_bench(CLI::App& app, Context& ctx) {
     cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
     cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);
     cmd->add_option("--repeat", a->repeat, "timed runs (the fastest is reported)")->default_val(3);
+    cmd->add_flag("!--no-rest", a->rest,
+                  "skip the at-rest run (the timed settings plus settling, to measure the "
+                  "damping lag)");
     run_on_parse(cmd, ctx, a, run_bench_closure);
   }
 

@@ -21,7 +21,14 @@ struct BenchClosureArgs : CommandArgs {
   std::vector<std::string> ref_sets = kReferenceSettings;
   unsigned seed = 1;
   int repeat = 3;
+  /// Also simulate the timed run's settings with settling (kRestSettings) and report how far
+  /// the timed run's closed valve is from that one at rest (the damping lag, issue 16).
+  bool rest = true;
 };
+
+/// Settling for the at-rest comparison of bench closure (docs/forward-status.md).
+inline const std::vector<std::string> kRestSettings = {"settle_mm=0.002", "settle_max_dt=0.08",
+                                                       "settle_max_s=5"};
 
 int run_bench_closure(const BenchClosureArgs& args);
 
