@@ -9,6 +9,7 @@
 #include "mvtwin/core/version.h"
 #include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/forward/valve_model.h"
 #include "report.h"
@@ -29,7 +30,19 @@ int run_export_model(const ExportModelArgs& a) {
   par.for_each([&](const std::string& name, double v, const char* unit) {
     comment << " " << name << "=" << v << " " << unit << ";";
   });
-  const auto files = forward::export_scene(scene, o, a.out, comment.str());
+  std::vector<int> guarded;
+  if (a.guard_run) {
+    std::cout << "simulating the closure to find the elements the inversion guard holds ..."
+              << std::endl;
+    const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
+    guarded = r.guarded_elements;
+    std::cout << "  " << guarded.size() << " element(s) held by the inversion guard"
+              << (r.summary.converged() ? "" : " (the closure failed: " + r.summary.reason + ")")
+              << "; valve.feb makes them neo-Hookean\n";
+    comment << "\nneo-Hookean (held by mvtwin's inversion guard during the closure): "
+            << guarded.size() << " element(s)";
+  }
+  const auto files = forward::export_scene(scene, o, a.out, comment.str(), guarded);
   const forward::ValveModel& m = scene.model;
   std::cout << "scene of " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
             << m.mesh.num_elements()
@@ -65,6 +78,9 @@ void register_export_model(CLI::App& app, Context& ctx) {
   cmd->add_option("--marginal-chordae", a->options.model.marginal_chordae, "marginal chordae count")
       ->default_val(28);
   cmd->add_option("--set", a->sets, "name=value for any option or parameter (repeatable)");
+  cmd->add_flag("!--no-guard-run", a->guard_run,
+                "do not simulate the closure first (it finds the elements the inversion guard "
+                "holds, neo-Hookean in valve.feb)");
   run_on_parse(cmd, ctx, a, run_export_model);
 }
 

@@ -13,6 +13,9 @@ struct ExportModelArgs : CommandArgs {
   std::string out;  ///< directory
   forward::ClosureOptions options;
   std::vector<std::string> sets;  ///< name=value for any option or parameter
+  /// Simulate the closure first to find the elements the inversion guard holds (neo-Hookean in
+  /// valve.feb).
+  bool guard_run = true;
 };
 
 int run_export_model(const ExportModelArgs& args);

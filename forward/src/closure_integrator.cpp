@@ -163,6 +163,7 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
         if (!terms_.elastic) return;
         bad = body_.gradient(x1, &g, &rot_, nullptr, &v1, &Kv);
         node_rotation_current_ = false;
+        for (const ElementRotations::Guard& gd : rot_.guards) ever_guarded_.insert(gd.element);
       },
       [&] {
         if (!with_contact) return;
@@ -455,6 +456,7 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   sum.interpenetrating_nodes = static_cast<int>(ip.nodes.size());
   sum.interpenetration_checked = ip.checked;
   sum.guarded_elements = static_cast<int>(rot_.guards.size());
+  result->guarded_elements.assign(ever_guarded_.begin(), ever_guarded_.end());
   const StepSolver::Stats& ls = linear_.stats();
   sum.pcg_fallbacks = ls.pcg_fallbacks;
   sum.unconverged_solves = ls.unconverged;

@@ -178,7 +178,8 @@ std::vector<RimFace> rim_faces(const ClosureScene& scene) {
 }
 
 void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
-                 const ClosureOptions& opt, const std::string& comment) {
+                 const ClosureOptions& opt, const std::string& comment,
+                 const std::vector<int>& guarded) {
   const ValveModel& m = scene.model;
   const SolidMesh& mesh = m.mesh;
   const bool quadratic = mesh.order == TetOrder::kQuadratic;
@@ -255,6 +256,17 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
        << "</G12>\n      <G23>" << num(t.g_cross()) << "</G23>\n      <G31>" << num(t.g_fibre)
        << "</G31>\n    </material>\n";
   }
+  // Elements the inversion guard held: neo-Hookean, domains of their own (ids 3 and 4).
+  std::vector<char> is_guarded(static_cast<size_t>(mesh.num_elements()), 0);
+  for (int e : guarded)
+    if (e >= 0 && e < mesh.num_elements()) is_guarded[static_cast<size_t>(e)] = 1;
+  const char* guarded_names[2] = {"anterior_guarded", "posterior_guarded"};
+  for (int k = 0; k < 2; ++k) {
+    const TransverselyIsotropic& t = scene.leaflet_material[k];
+    os << "    <material id=\"" << k + 3 << "\" name=\"" << guarded_names[k]
+       << "\" type=\"neo-Hookean\">\n      <density>" << num(opt.density) << "</density>\n      <E>"
+       << num(t.e_cross) << "</E>\n      <v>" << num(t.nu_cross) << "</v>\n    </material>\n";
+  }
   os << "  </Material>\n";
 
   // Mesh: leaflet nodes 1..n, papillary tips n+1, n+2.
@@ -268,12 +280,16 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
        << "</node>\n";
   os << "    </Nodes>\n";
   const int npe = mesh.nodes_per_element();
-  std::vector<int> elements_of[2];
-  for (int e = 0; e < mesh.num_elements(); ++e)
-    elements_of[mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1].push_back(e);
-  const char* domains[2] = {"anterior", "posterior"};
+  // Domains 0, 1: the leaflets (orthotropic); 2, 3: their guarded elements (neo-Hookean).
+  std::vector<int> elements_of[4];
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const int leaflet = mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1;
+    elements_of[leaflet + (is_guarded[static_cast<size_t>(e)] ? 2 : 0)].push_back(e);
+  }
+  const char* domains[4] = {"anterior", "posterior", "anterior_guarded", "posterior_guarded"};
   int eid = 0;
-  for (int k = 0; k < 2; ++k) {
+  for (int k = 0; k < 4; ++k) {
+    if (elements_of[k].empty()) continue;
     os << "    <Elements type=\"" << (quadratic ? "tet10" : "tet4") << "\" name=\"" << domains[k]
        << "\">\n";
     for (int e : elements_of[k]) {
@@ -375,8 +391,11 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   os << "  </Mesh>\n";
 
   os << "  <MeshDomains>\n";
-  for (int k = 0; k < 2; ++k)
-    os << "    <SolidDomain name=\"" << domains[k] << "\" mat=\"" << names[k] << "\"/>\n";
+  for (int k = 0; k < 4; ++k) {
+    if (elements_of[k].empty()) continue;
+    os << "    <SolidDomain name=\"" << domains[k] << "\" mat=\""
+       << (k < 2 ? names[k] : guarded_names[k - 2]) << "\"/>\n";
+  }
   os << "  </MeshDomains>\n";
 
   // Per-element material axes: a = fibre.

@@ -17,7 +17,8 @@ namespace mvtwin::forward {
 std::vector<std::filesystem::path> export_scene(const ClosureScene& scene,
                                                 const ClosureOptions& opt,
                                                 const std::filesystem::path& dir,
-                                                const std::string& comment) {
+                                                const std::string& comment,
+                                                const std::vector<int>& guarded) {
   const ValveModel& m = scene.model;
   create_output_directory(dir);
   std::vector<std::filesystem::path> out;
@@ -156,7 +157,7 @@ std::vector<std::filesystem::path> export_scene(const ClosureScene& scene,
     });
     out.push_back(dir / "annulus_motion.csv");
   }
-  write_febio(dir / "valve.feb", scene, opt, comment);
+  write_febio(dir / "valve.feb", scene, opt, comment, guarded);
   out.push_back(dir / "valve.feb");
   return out;
 }

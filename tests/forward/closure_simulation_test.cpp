@@ -1,5 +1,6 @@
 #include "mvtwin/forward/closure_simulation.h"
 
+#include <algorithm>
 #include <iostream>
 #include <set>
 
@@ -477,6 +478,11 @@ TEST(ClosureSimulation, SettlingHoldsTheLoadUntilTheValveStops) {
   EXPECT_NEAR(b.samples.back().observed_time_s, a.samples.back().observed_time_s, 1e-12);
   EXPECT_LT(b.samples.back().kinetic_energy, 0.1 * a.samples.back().kinetic_energy);
   EXPECT_EQ(b.summary.interpenetrating_nodes, 0);
+  // Every element the guard holds at the end is among those it held at some step.
+  for (const ClosureResult* r : {&a, &b}) {
+    EXPECT_GE(r->guarded_elements.size(), static_cast<size_t>(r->summary.guarded_elements));
+    EXPECT_TRUE(std::is_sorted(r->guarded_elements.begin(), r->guarded_elements.end()));
+  }
   // Held boundary: the prescribed nodes end where they end without settling.
   const ClosureScene scene = make_closure_scene(p.sequence, p.truth->parameters, plain);
   ASSERT_FALSE(scene.prescribed.empty());

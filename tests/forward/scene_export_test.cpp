@@ -85,7 +85,10 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   const ClosureScene scene = small_scene(true);
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_scene_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  const auto files = export_scene(scene, o, dir, "test\nsecond line -- with dashes");
+  // Two elements as if the inversion guard had held them: neo-Hookean, in their own domains.
+  const int last_element = scene.model.mesh.num_elements() - 1;
+  const auto files =
+      export_scene(scene, o, dir, "test\nsecond line -- with dashes", {0, last_element});
   for (const char* f :
        {"leaflets.vtu", "leaflets_quadratic.vtu", "chordae.vtp", "pressure_surface.vtp",
         "boundary.csv", "annulus_motion.csv", "boundary.pvd", "valve.feb"}) {
@@ -120,6 +123,20 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(value_of("R0_min"), o.contact.exclusion_mm * o.contact.exclusion_mm);
   EXPECT_EQ(count(feb, "sliding-elastic"), 0);
   EXPECT_EQ(count(feb, "<ElementData type=\"mat_axis\""), 2);
+  EXPECT_EQ(count(feb, "type=\"neo-Hookean\""), 2);  // one material per leaflet
+  const auto elements_in = [&feb](const std::string& domain) {
+    const size_t at = feb.find("<Elements type=\"tet10\" name=\"" + domain + "\">");
+    if (at == std::string::npos) return 0;
+    return count(feb.substr(at, feb.find("</Elements>", at) - at), "<elem id=");
+  };
+  const bool first_anterior = scene.model.mesh.tag[0] == static_cast<int>(LeafletTag::kAnterior);
+  const bool last_anterior =
+      scene.model.mesh.tag[last_element] == static_cast<int>(LeafletTag::kAnterior);
+  EXPECT_EQ(elements_in("anterior_guarded"), int(first_anterior) + int(last_anterior));
+  EXPECT_EQ(elements_in("posterior_guarded"), int(!first_anterior) + int(!last_anterior));
+  EXPECT_EQ(elements_in("anterior") + elements_in("posterior") + elements_in("anterior_guarded") +
+                elements_in("posterior_guarded"),
+            mesh.num_elements());
   EXPECT_EQ(count(feb, "--"), 2) << "XML comments must not contain -- (only <!-- and -->)";
   const int curves = count(feb, "<load_controller id=");
   // The integers following each occurrence of `key` (for example `lc="` -> 3).

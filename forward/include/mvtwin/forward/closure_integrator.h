@@ -1,5 +1,6 @@
 #pragma once
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -159,6 +160,7 @@ class ClosureIntegrator {
   // The last linearization.
   double h_ = 0.0, ck_ = 0.0, cm_ = 0.0;
   ElementRotations rot_, rot_at_factor_;
+  std::set<int> ever_guarded_;  ///< elements the inversion guard held at some linearization
   std::vector<Eigen::Matrix3d> cable_tangent_;
   // Rotation of each node's neighbourhood since the last factorization (the rotated
   // preconditioner, StepSolver::System::rotate), computed when first needed.

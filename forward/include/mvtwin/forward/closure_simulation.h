@@ -160,6 +160,9 @@ struct ClosureResult {
   /// Per clip: distance between its two sites' atrial surface nodes at the end of the clip
   /// phase and at the end, mm.
   std::vector<double> clip_gap_clipped_mm, clip_gap_end_mm;
+  /// Elements the inversion guard held at some step (ascending): co-rotational elasticity alone
+  /// would have let them collapse (the FEBio export gives them a law that cannot).
+  std::vector<int> guarded_elements;
 };
 
 /// Simulates the closure of `sequence` from end-diastole to the first closed frame with the

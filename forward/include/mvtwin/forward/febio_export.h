@@ -81,7 +81,12 @@ struct RimFace {
 };
 std::vector<RimFace> rim_faces(const ClosureScene& scene);
 
+/// `guarded`: elements mvtwin's inversion guard held (ClosureResult::guarded_elements). FEBio has
+/// no such guard and its orthotropic elastic law (St Venant-Kirchhoff) lets them collapse, so
+/// they are written as compressible neo-Hookean (E = the leaflet's cross-fibre modulus, v = its
+/// Poisson ratio), whose energy grows without bound as J -> 0, in domains of their own.
 void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
-                 const ClosureOptions& options, const std::string& comment);
+                 const ClosureOptions& options, const std::string& comment,
+                 const std::vector<int>& guarded = {});
 
 }  // namespace mvtwin::forward

@@ -25,7 +25,8 @@ namespace mvtwin::forward {
 std::vector<std::filesystem::path> export_scene(const ClosureScene& scene,
                                                 const ClosureOptions& options,
                                                 const std::filesystem::path& dir,
-                                                const std::string& comment);
+                                                const std::string& comment,
+                                                const std::vector<int>& guarded = {});
 
 /// Writes a simulation's recorded atrial surfaces as la_surface_NNNN.vtp plus a time series
 /// simulation.pvd (simulated time). Returns the files written.
