@@ -97,19 +97,13 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
   // made before error-controlled steps had fixed ones (step_error_mm = 0, which makes max_dt
   // irrelevant).
   auto physics = [](const std::vector<std::pair<std::string, std::string>>& o) {
-    std::map<std::string, std::string> m(o.begin(), o.end());
+    const auto r = forward::result_options(o);
+    std::map<std::string, std::string> m(r.begin(), r.end());
     for (const char* k : {"record_every", "refactor_iterations", "pcg_max_iterations",
                           "rotated_preconditioner", "single_precision_preconditioner"})
       m.erase(k);
-    std::erase_if(m, [](const auto& kv) { return !forward::affects_results(kv.first); });
     if (!m.count("step_error_mm")) m["step_error_mm"] = "0";
     if (m["step_error_mm"] == "0") m.erase("max_dt");
-    // Likewise before settling (settle_mm = 0 makes its step and time limits irrelevant).
-    if (!m.count("settle_mm")) m["settle_mm"] = "0";
-    if (m["settle_mm"] == "0") {
-      m.erase("settle_max_dt");
-      m.erase("settle_max_s");
-    }
     return m;
   };
   const auto wanted = physics(forward::describe_options(ro));

@@ -34,7 +34,7 @@ int run_export_model(const ExportModelArgs& a) {
   if (a.guard_run) {
     std::cout << "simulating the closure to find the elements the inversion guard holds ..."
               << std::endl;
-    const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, o);
+    const forward::ClosureResult r = forward::simulate_closure(scene, o);
     guarded = r.guarded_elements;
     std::cout << "  " << guarded.size() << " element(s) held by the inversion guard"
               << (r.summary.converged() ? "" : " (the closure failed: " + r.summary.reason + ")")

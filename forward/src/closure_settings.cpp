@@ -1,6 +1,8 @@
 #include "mvtwin/forward/closure_settings.h"
 
+#include <algorithm>
 #include <charconv>
+#include <cstdlib>
 #include <functional>
 #include <map>
 #include <sstream>
@@ -255,14 +257,19 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
 
 bool affects_results(const std::string& option_name) { return option_name != "threads"; }
 
-std::vector<std::pair<std::string, std::string>> describe_result_options(const ClosureOptions& o) {
-  std::vector<std::pair<std::string, std::string>> out = describe_options(o);
+std::vector<std::pair<std::string, std::string>> result_options(
+    std::vector<std::pair<std::string, std::string>> out) {
   std::erase_if(out, [](const auto& kv) { return !affects_results(kv.first); });
-  // Without settling its limits change nothing, and keys made before it existed stay valid.
-  if (!(o.settle_mm > 0)) {
+  const auto settle =
+      std::find_if(out.begin(), out.end(), [](const auto& kv) { return kv.first == "settle_mm"; });
+  if (settle == out.end() || !(std::strtod(settle->second.c_str(), nullptr) > 0)) {
     std::erase_if(out, [](const auto& kv) { return kv.first.rfind("settle_", 0) == 0; });
   }
   return out;
+}
+
+std::vector<std::pair<std::string, std::string>> describe_result_options(const ClosureOptions& o) {
+  return result_options(describe_options(o));
 }
 
 }  // namespace mvtwin::forward

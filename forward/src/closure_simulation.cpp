@@ -19,6 +19,10 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+/// The closure of a built scene; wall_s counts from t_start (the scene's build included).
+ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& opt,
+                             Clock::time_point t_start);
+
 }  // namespace
 
 bool ClosureOptions::is_valid(std::string* error) const {
@@ -88,6 +92,17 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
                                const ClosureOptions& opt) {
   const auto t_start = Clock::now();
   const ClosureScene scene = make_closure_scene(seq, params, opt);  // validates the options
+  return simulate_scene(scene, opt, t_start);
+}
+
+ClosureResult simulate_closure(const ClosureScene& scene, const ClosureOptions& opt) {
+  return simulate_scene(scene, opt, Clock::now());
+}
+
+namespace {
+
+ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& opt,
+                             Clock::time_point t_start) {
   ClosureIntegrator integrator(scene, opt);
   ClosureResult result;
   ValveState state = integrator.initial_state();
@@ -109,6 +124,17 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
+  // One step of h from t, halved (h and halvings updated) up to max_step_halvings times while
+  // it fails; the outcome of the last try.
+  auto step_halving = [&](double t, double* h, int* halvings) {
+    StepOutcome o;
+    while (!(o = integrator.step(t, *h, &state)).ok() && *halvings < opt.max_step_halvings) {
+      ++*halvings;
+      ++halvings_total;
+      *h *= 0.5;
+    }
+    return o;
+  };
 
   double tau = -integrator.clip_phase_s();
   if (tau >= 0.0) result.samples.push_back(integrator.sample(0.0, state));
@@ -124,19 +150,13 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     if (control.adaptive() && tau >= 0.0 && record_interval > 0.0 && next_record < T - 1e-12)
       h = std::min(h, next_record - tau);
     int halvings = 0;
-    StepOutcome o;
     const ValveState before = control.adaptive() ? state : ValveState{};
-    while (!(o = integrator.step(tau, h, &state)).ok()) {
-      if (halvings >= opt.max_step_halvings) {
-        result.samples.push_back(integrator.sample(std::max(tau, 0.0), state));
-        finish(o.outcome, o.message + " at t = " + std::to_string(tau) + " s" +
-                              (tau < 0 ? " (clip phase)" : "") + " (after " +
-                              std::to_string(halvings) + " step halvings)");
-        return result;
-      }
-      ++halvings;
-      ++halvings_total;
-      h *= 0.5;
+    if (const StepOutcome o = step_halving(tau, &h, &halvings); !o.ok()) {
+      result.samples.push_back(integrator.sample(std::max(tau, 0.0), state));
+      finish(o.outcome, o.message + " at t = " + std::to_string(tau) + " s" +
+                            (tau < 0 ? " (clip phase)" : "") + " (after " +
+                            std::to_string(halvings) + " step halvings)");
+      return result;
     }
     if (control.adaptive() && tau >= 0.0) {
       const double error = integrator.local_error(before, state, h);
@@ -173,19 +193,13 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
     while (settle_s < opt.settle_max_s - 1e-12) {
       const ValveState before = state;
       int halvings = 0;
-      StepOutcome o;
       h = std::min(h, opt.settle_max_s - settle_s);
-      while (!(o = integrator.step(T + settle_s, h, &state)).ok()) {
-        if (halvings >= opt.max_step_halvings) {
-          result.samples.push_back(integrator.sample(T, state));
-          finish(o.outcome, o.message + " while settling, " + std::to_string(settle_s) +
-                                " s after the closure (after " + std::to_string(halvings) +
-                                " step halvings)");
-          return result;
-        }
-        ++halvings;
-        ++halvings_total;
-        h *= 0.5;
+      if (const StepOutcome o = step_halving(T + settle_s, &h, &halvings); !o.ok()) {
+        result.samples.push_back(integrator.sample(T, state));
+        finish(o.outcome, o.message + " while settling, " + std::to_string(settle_s) +
+                              " s after the closure (after " + std::to_string(halvings) +
+                              " step halvings)");
+        return result;
       }
       settle_s += h;
       ++steps;
@@ -203,6 +217,8 @@ ClosureResult simulate_closure(const ValveSequence& seq, const ValveParameters& 
   finish(Outcome::kConverged, "");
   return result;
 }
+
+}  // namespace
 
 SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOptions& o,
                                         const ValveParameters& p) {

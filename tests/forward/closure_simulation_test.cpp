@@ -442,6 +442,21 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
   EXPECT_NE(message([&] { apply_setting("no_such_name=1", &o, &par); }).find("no_such_name"),
             std::string::npos);
   EXPECT_NE(message([&] { apply_option("dt=fast", &o); }).find("not a number"), std::string::npos);
+  // What can change a result: never threads; the settling options only with settling on (a
+  // description from before settling, without settle_mm, counts as off).
+  auto settle_keys = [](const std::vector<std::pair<std::string, std::string>>& d) {
+    int n = 0, threads = 0;
+    for (const auto& [k, v] : d) {
+      n += k.rfind("settle_", 0) == 0;
+      threads += k == "threads";
+    }
+    return threads ? -1 : n;
+  };
+  EXPECT_EQ(settle_keys(describe_result_options(o)), 0);
+  ClosureOptions settling = o;
+  settling.settle_mm = 0.01;
+  EXPECT_EQ(settle_keys(describe_result_options(settling)), 3);
+  EXPECT_EQ(settle_keys(result_options({{"dt", "0.01"}, {"settle_max_s", "5"}})), 0);
   // Every described option can be set back from its description.
   ClosureOptions copy;
   for (const auto& [name, value] : describe_options(o)) apply_option(name + "=" + value, &copy);

@@ -32,9 +32,13 @@ bool is_parameter_name(const std::string& name);
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& options);
 /// Whether an option can change a simulation's result (threads cannot).
 bool affects_results(const std::string& option_name);
-/// describe_options() without the options that cannot change a result, for cache keys and for
-/// deciding whether a stored run is the one asked for; the settling limits only with settling on
-/// (keys made before settling existed stay valid).
+/// Of described options (describe_options(), or a result file's), those that can change a
+/// result: without threads, and without the settling options while settling is off (settle_mm
+/// 0 or absent), so that descriptions made before settling existed still match.
+std::vector<std::pair<std::string, std::string>> result_options(
+    std::vector<std::pair<std::string, std::string>> described);
+/// result_options(describe_options(options)): for cache keys and for deciding whether a stored
+/// run is the one asked for.
 std::vector<std::pair<std::string, std::string>> describe_result_options(
     const ClosureOptions& options);
 

@@ -15,6 +15,8 @@
 
 namespace mvtwin::forward {
 
+class ClosureScene;
+
 /// A MitraClip (Mansi et al. 2012, Sec. 2.4): a stiff tension-only spring between a site on each
 /// leaflet, in grid coordinates (s in [0, 1) around the annulus from the anterolateral commissure,
 /// anterior for s < 0.5; t from the annulus (0) to the free edge (1)). It holds the two
@@ -45,8 +47,10 @@ struct ClosureOptions {
   /// shows it, instead of lagging behind the load through the damping (docs/forward-status.md).
   /// 0 = off: the state when the load peaks (the paper's end state).
   double settle_mm = 0.0;
-  double settle_max_dt = 0.32;      ///< the largest settling step, s
-  double settle_max_s = 10.0;       ///< settling gives up (the valve still moving) after this, s
+  /// The largest settling step, s (one linearization per step: at 0.32 s the steps wander
+  /// instead of settling, docs/forward-status.md).
+  double settle_max_dt = 0.08;
+  double settle_max_s = 5.0;        ///< settling gives up (the valve still moving) after this, s
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
@@ -170,6 +174,8 @@ struct ClosureResult {
 /// happened. Throws mvtwin::Error for invalid options or a sequence that cannot be modelled.
 ClosureResult simulate_closure(const ValveSequence& sequence, const ValveParameters& parameters,
                                const ClosureOptions& options = {});
+/// The same for a scene already built (make_closure_scene) with these options.
+ClosureResult simulate_closure(const ClosureScene& scene, const ClosureOptions& options);
 
 /// The result as a file record (core/simulation_file.h), with the options and parameters that
 /// produced it.
