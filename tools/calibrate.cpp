@@ -77,6 +77,10 @@ json calibration_json(const CalibrationRecord& c) {
           {"failed_sims", c.failed_simulations},
           {"cache_hits", c.cache_hits},
           {"wall_s", c.wall_s},
+          {"search_sims", c.search_simulations},
+          {"search_error_before_mm", nan_to_null(c.search_error_before_mm)},
+          {"search_error_after_mm", nan_to_null(c.search_error_after_mm)},
+          {"refinement", c.refinement},
           {"history_columns", {"simulation", "error_mm", "best_mm"}},
           {"history", history},
           {"options", opts},
@@ -116,13 +120,20 @@ int run_calibrate(const CalibrateArgs& a) {
   oo.simulation = o;
   oo.all_closing_frames = a.all_frames;
   inverse::ClosureObjective objective(p, inverse::ParameterSpace(a.fit, start), oo);
+  inverse::CalibrationOptions opt = a.calibration;
+  if (!a.no_search_model) {
+    opt.search_model = inverse::search_model_for(o);
+    if (!a.search_sets.empty() && !opt.search_model) opt.search_model = o;
+    for (const std::string& s : a.search_sets)
+      forward::apply_option(s, &*opt.search_model,
+                            "--search-set: the search model takes model options only");
+  }
   std::cout << "calibrating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": "
             << objective.space().names() << "\n  by "
             << inverse::fit_method_name(a.calibration.method) << ", " << a.calibration.jobs
             << " simulations at once, model " << o.model.ures << " x " << o.model.vres << ", dt "
             << o.dt << " s; " << objective.num_residuals() << " distances over "
             << objective.frames().size() << " frame(s)" << std::endl;
-  inverse::CalibrationOptions opt = a.calibration;
   const bool tty = isatty(fileno(stderr)) != 0;
   // One line per change of the simulation count or of the best error, with the time so far.
   struct Shown {
@@ -131,6 +142,10 @@ int run_calibrate(const CalibrateArgs& a) {
   };
   auto shown = std::make_shared<Shown>();
   const auto t0 = std::chrono::steady_clock::now();
+  opt.stage = [tty](const std::string& stage) {
+    std::fprintf(stderr, "%s %s\n", tty ? "\n" : "", stage.c_str());
+    std::fflush(stderr);
+  };
   opt.progress = [tty, shown, t0](int it, double best, int sims) {
     if (sims == shown->sims && best == shown->best) return;
     shown->sims = sims;
@@ -222,6 +237,14 @@ void register_calibrate(CLI::App& app, Context& ctx) {
   cmd->add_option("--vtk", a->vtk, "directory for the valve before and after (ParaView)");
   cmd->add_option("--set", a->sets,
                   "name=value for the calibration model (repeatable), e.g. --set ures=20");
+  auto* search_set = cmd->add_option(
+      "--search-set", a->search_sets,
+      "name=value for the model the optimizer searches with (repeatable; default: the "
+      "calibration model at 0.8 of its grid, 24 x 24 at the paper's; the fit is then refined "
+      "on the calibration model)");
+  cmd->add_flag("--no-search-model", a->no_search_model,
+                "search with the calibration model itself (slower at the paper's grid)")
+      ->excludes(search_set);
   run_on_parse(cmd, ctx, a, run_calibrate);
 }
 

@@ -19,6 +19,10 @@ struct CalibrateArgs : CommandArgs {
   bool use_detected = false;  ///< the sequence detected from the images (mvtwin detect)
   inverse::CalibrationOptions calibration;
   std::vector<std::string> sets;  ///< name=value for the calibration model
+  /// name=value for the search model, on top of the default one (inverse::search_model_for: 24
+  /// x 24 for the paper's grid); no_search_model: the optimizer runs on the calibration model.
+  std::vector<std::string> search_sets;
+  bool no_search_model = false;
 };
 
 int run_calibrate(const CalibrateArgs& args);

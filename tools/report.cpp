@@ -180,6 +180,11 @@ void print_calibration(const CalibrationRecord& c, std::ostream& os) {
   os << "  error " << fixed(c.error_before_mm, 3) << " -> " << fixed(c.error_after_mm, 3) << " mm; "
      << c.simulations << " simulations (" << c.failed_simulations << " failed, " << c.cache_hits
      << " from the cache), " << fixed(c.wall_s, 1) << " s\n";
+  if (c.search_simulations > 0) {
+    os << "  searched on a cheaper model (" << c.search_simulations
+       << " of the simulations): " << fixed(c.search_error_before_mm, 3) << " -> "
+       << fixed(c.search_error_after_mm, 3) << " mm there; " << c.refinement << "\n";
+  }
   os << "  parameter                                   start     fitted   +- sd      "
      << (c.synthetic ? "truth" : "") << "\n";
   for (size_t i = 0; i < c.names.size(); ++i) {

@@ -72,6 +72,10 @@ void write_calibration_file(const std::filesystem::path& path, const Calibration
     fit.write_scalar("failed_simulations", r.failed_simulations, nullptr);
     fit.write_scalar("cache_hits", r.cache_hits, nullptr);
     fit.write_scalar("wall_s", r.wall_s, "s");
+    fit.write_scalar("search_simulations", r.search_simulations, nullptr);
+    fit.write_scalar("search_error_before_mm", r.search_error_before_mm, "mm");
+    fit.write_scalar("search_error_after_mm", r.search_error_after_mm, "mm");
+    if (!r.refinement.empty()) fit.attr("refinement", r.refinement);
 
     const h5::Location par = root.create_group("parameters", true);
     r.parameters.for_each([&](const std::string& name, double v, const char* unit) {
@@ -129,6 +133,12 @@ CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
   r.failed_simulations = static_cast<int>(fit.read_scalar("failed_simulations"));
   r.cache_hits = static_cast<int>(fit.read_scalar("cache_hits"));
   r.wall_s = fit.read_scalar("wall_s");
+  if (fit.exists("search_simulations")) {
+    r.search_simulations = static_cast<int>(fit.read_scalar("search_simulations"));
+    r.search_error_before_mm = fit.read_scalar("search_error_before_mm");
+    r.search_error_after_mm = fit.read_scalar("search_error_after_mm");
+  }
+  if (fit.has_attr("refinement")) r.refinement = fit.attr_string("refinement");
   const h5::Location par = root.open_group("parameters");
   r.parameters.for_each(
       [&](const std::string& name, double& x, const char*) { x = par.read_scalar(name); });

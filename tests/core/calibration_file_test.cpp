@@ -76,6 +76,29 @@ TEST(CalibrationFile, RoundTrip) {
   EXPECT_DOUBLE_EQ(b.parameters.restlength_factor[0], 1.12);
   EXPECT_EQ(b.failed_simulations, 1);
   EXPECT_DOUBLE_EQ(b.error_after_mm, 0.6);
+  // Searched on the fit's model: no search figures.
+  EXPECT_EQ(b.search_simulations, 0);
+  EXPECT_TRUE(std::isnan(b.search_error_before_mm));
+  EXPECT_TRUE(std::isnan(b.search_error_after_mm));
+  EXPECT_TRUE(b.refinement.empty());
+}
+
+TEST(CalibrationFile, ASearchModelsFiguresRoundTrip) {
+  CalibrationRecord a = sample();
+  a.options.emplace_back("fit_search_model", "ures=24,vres=24");
+  a.search_simulations = 2;
+  a.search_error_before_mm = 1.4;
+  a.search_error_after_mm = 0.55;
+  a.refinement = "Gauss-Newton step kept (damping 0.3): 0.62 -> 0.60 mm on the 30 x 30 model";
+  const fs::path p = temp("search.h5");
+  write_calibration_file(p, a);
+  const CalibrationRecord b = read_calibration_file(p);
+  fs::remove(p);
+  EXPECT_EQ(b.options, a.options);
+  EXPECT_EQ(b.search_simulations, 2);
+  EXPECT_EQ(b.search_error_before_mm, 1.4);
+  EXPECT_EQ(b.search_error_after_mm, 0.55);
+  EXPECT_EQ(b.refinement, a.refinement);
 }
 
 TEST(CalibrationFile, InconsistentRecordIsRefusedAndTheOldFileKept) {

@@ -228,6 +228,95 @@ TEST(Calibration, CeresFitsToo) {
   EXPECT_NE(r.termination.find("ceres"), std::string::npos);
 }
 
+TEST(Calibration, GaussNewtonStepsSolveALinearProblemWithinTheirLimits) {
+  // Linear residuals r(x) = J (x - x*): the least-squares minimum is x*, reached by the
+  // lightly damped step when x* is within a scale of x; a far x* is approached by a step of
+  // one scale along its longest component; bounds clamp.
+  const ParameterSpace space(marginal_restlengths(), ValveParameters{});  // scales 0.05
+  ASSERT_EQ(space.size(), 2);
+  Eigen::MatrixXd J(3, 2);
+  J << 2.0, 0.5, -1.0, 3.0, 0.3, 0.3;
+  const Eigen::VectorXd x = space.start();
+  Eigen::VectorXd target = x;
+  target << x[0] + 0.03, x[1] - 0.02;
+  const std::vector<Eigen::VectorXd> near =
+      gauss_newton_steps(space, x, J * (x - target), J, {1e-9, 1.0});
+  ASSERT_EQ(near.size(), 2u);
+  EXPECT_NEAR(near[0][0], target[0], 1e-7);
+  EXPECT_NEAR(near[0][1], target[1], 1e-7);
+  EXPECT_LT((near[1] - target).norm(), (x - target).norm()) << "a damped step goes part way";
+  EXPECT_GT((near[1] - target).norm(), 1e-3) << "damping shortens the step";
+  target << x[0] + 0.2, x[1] + 0.05;  // 4 and 1 scales away
+  const Eigen::VectorXd far = gauss_newton_steps(space, x, J * (x - target), J, {1e-9})[0];
+  EXPECT_NEAR(far[0], x[0] + 0.05, 1e-9) << "at most one scale";
+  EXPECT_NEAR(far[1], x[1] + 0.0125, 1e-7) << "the same direction, shortened";
+  Eigen::VectorXd at_bound = x;
+  at_bound[0] = space.upper()[0];
+  target = at_bound;
+  target[0] += 0.01;  // beyond the bound
+  EXPECT_EQ(gauss_newton_steps(space, at_bound, J * (at_bound - target), J, {1e-9})[0][0],
+            space.upper()[0]);
+  EXPECT_TRUE(
+      gauss_newton_steps(space, x, J * (x - target), Eigen::MatrixXd::Zero(3, 2), {0.1}).empty());
+}
+
+TEST(Calibration, ASearchModelsFitIsRefinedOnTheModel) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
+#endif
+  const Patient& p = observed_patient();
+  ObjectiveOptions model = small_model();
+  model.simulation.model.ures = 20;
+  const ParameterSpace space(marginal_restlengths(), ValveParameters{});
+  CalibrationOptions co;
+  co.max_simulations = 14;
+  co.search_model = small_model().simulation;  // 16 x 8
+  std::vector<std::string> stages;
+  co.stage = [&](const std::string& s) { stages.push_back(s); };
+  ClosureObjective obj(p, space, model);
+  const CalibrationResult r = calibrate(obj, co);
+  ASSERT_EQ(stages.size(), 2u);
+  EXPECT_NE(stages[0].find("16 x 8"), std::string::npos) << stages[0];
+  EXPECT_NE(stages[1].find("20 x 8"), std::string::npos) << stages[1];
+  // The search ran on the search model only; the model simulated the start, the search's fit,
+  // the Jacobian there (n) and at most two steps.
+  EXPECT_GE(r.search_simulations, 8);
+  EXPECT_EQ(r.simulations, r.search_simulations + obj.simulations());
+  EXPECT_GE(obj.simulations(), 2 + space.size());
+  EXPECT_LE(obj.simulations(), 4 + space.size());
+  EXPECT_LT(r.search_error_after_mm, r.search_error_before_mm);
+  // The errors before and after are the model's, and the refinement never loses.
+  ClosureObjective check(p, space, model);
+  const Evaluation start = check.evaluate(r.start), searched = check.evaluate(r.search_fitted),
+                   fitted = check.evaluate(r.fitted);
+  ASSERT_TRUE(start.ok && searched.ok && fitted.ok);
+  EXPECT_EQ(r.error_before_mm, start.mean_mm);
+  EXPECT_EQ(r.error_after_mm, fitted.mean_mm);
+  EXPECT_LE(r.error_after_mm, searched.mean_mm);
+  EXPECT_LT(r.error_after_mm, r.error_before_mm);
+  EXPECT_NE(r.refinement.find("Gauss-Newton"), std::string::npos) << r.refinement;
+  EXPECT_TRUE(r.sd.allFinite()) << "the uncertainty from the model's Jacobian";
+  ASSERT_FALSE(r.history.empty());
+  EXPECT_EQ(r.history.back().simulation, r.simulations) << "the history counts both models";
+  // The same search model as the model: one model, as without it.
+  co.search_model = model.simulation;
+  ClosureObjective same(p, space, model);
+  const CalibrationResult one = calibrate(same, co);
+  EXPECT_EQ(one.search_simulations, 0);
+  EXPECT_TRUE(one.refinement.empty());
+  // A search model that cannot run is refused before any work.
+  co.search_model->dt = -1;
+  ClosureObjective refused(p, space, model);
+  EXPECT_THROW(calibrate(refused, co), Error);
+  EXPECT_EQ(refused.simulations(), 0);
+  EXPECT_FALSE(search_model_for(small_model().simulation).has_value()) << "16 x 8: no search model";
+  const auto paper = search_model_for(forward::ClosureOptions{});
+  ASSERT_TRUE(paper.has_value());
+  EXPECT_EQ(paper->model.ures, 24);
+  EXPECT_EQ(paper->model.vres, 24);
+  EXPECT_EQ(paper->dt, forward::ClosureOptions{}.dt) << "only the grid changes";
+}
+
 TEST(Calibration, MethodsByNameAndInvalidOptionsAreRefusedBeforeAnyWork) {
   for (int k = 0; k < kNumFitMethods; ++k) {
     const auto m = static_cast<FitMethod>(k);

@@ -1,5 +1,6 @@
 #pragma once
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,6 +35,14 @@ struct CalibrationRecord {
   double error_before_mm = 0, error_after_mm = 0;
   int simulations = 0, failed_simulations = 0, cache_hits = 0;
   double wall_s = 0;
+  /// With a search model (a cheaper model the optimizer ran on; the `fit_search_*` options say
+  /// which): its share of the simulations, its errors at the start and at its fit, and what the
+  /// refinement on the fit's model did. Without one: 0, NaN, NaN, empty. Files written before
+  /// search models existed read as without one.
+  int search_simulations = 0;
+  double search_error_before_mm = std::numeric_limits<double>::quiet_NaN();
+  double search_error_after_mm = std::numeric_limits<double>::quiet_NaN();
+  std::string refinement;
 
   // Convergence history, one row per simulation run.
   std::vector<int> history_simulation;

@@ -1,5 +1,6 @@
 #pragma once
 #include <functional>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -50,11 +51,36 @@ struct CalibrationOptions {
   std::vector<double> restlength_scan = {-0.2, -0.1, 0.1, 0.2, 0.3, 0.4, 0.5};
   /// Observation noise SD for the covariance, mm; <= 0: the fit's residual RMS.
   double noise_mm = 0.0;
-  /// Called after every improvement and every iteration.
+  /// A cheaper model to search with (the start, the scan and the optimizer run on it), for
+  /// example the objective's model at 24 x 24 (search_model_for()). The fit is then finished
+  /// on the objective's own model: the start and the search's fit are simulated there with
+  /// the uncertainty's Jacobian, and one damped Gauss-Newton step from that Jacobian (two
+  /// dampings, at once) is kept when it lowers the error. Empty, or the objective's model
+  /// itself: the whole fit runs on the objective's model.
+  std::optional<forward::ClosureOptions> search_model;
+  /// Called after every improvement and every iteration (the simulations counted over both
+  /// models, the best error on the model the stage runs on).
   std::function<void(int iteration, double best_mm, int simulations)> progress;
+  /// Called when a stage begins: "search on the 20 x 30 model", "refine on the 30 x 30 model".
+  std::function<void(const std::string& stage)> stage;
 
   bool is_valid(std::string* error) const;
 };
+
+/// The default search model for calibrating with `model`: the same model at 0.8 of its grid in
+/// each direction (24 x 24 for the paper's 30 x 30: a closure costs about 0.6 of one there)
+/// when it has at least 25 points around the annulus, else none (the fit searches on `model`).
+std::optional<forward::ClosureOptions> search_model_for(const forward::ClosureOptions& model);
+
+/// The refinement's candidates: damped Gauss-Newton steps from x, for the distances r and their
+/// Jacobian J (user units), one per damping: (A + lambda diag A) dz = -J_z^T r with A = J_z^T
+/// J_z in scales of each parameter (J_z = J diag(scale)), each step shortened to at most one
+/// scale per parameter and clamped to the bounds. The distances are unsigned, so a step only
+/// proposes: the caller keeps it if the simulated error falls. Empty when J is zero.
+std::vector<Eigen::VectorXd> gauss_newton_steps(const ParameterSpace& space,
+                                                const Eigen::VectorXd& x, const Eigen::VectorXd& r,
+                                                const Eigen::MatrixXd& J,
+                                                const std::vector<double>& dampings);
 
 struct HistoryEntry {
   int simulation = 0;   ///< simulations run so far
@@ -77,7 +103,16 @@ struct CalibrationResult {
   std::vector<bool> identified;
   double noise_mm = 0;
   double error_before_mm = 0, error_after_mm = 0;
+  /// Simulations of all of it; failed ones and cache hits over both models.
   int simulations = 0, failed_simulations = 0, cache_hits = 0;
+  /// With a search model: its simulations, its errors at the start and at its fit, where its
+  /// fit was (`search_fitted`, which the refinement starts from), and what the refinement did.
+  /// Without one: 0, NaN, empty.
+  int search_simulations = 0;
+  double search_error_before_mm = std::numeric_limits<double>::quiet_NaN();
+  double search_error_after_mm = std::numeric_limits<double>::quiet_NaN();
+  Eigen::VectorXd search_fitted;
+  std::string refinement;
   /// Failed candidate simulations by outcome (outcome_name -> count).
   std::map<std::string, int> failures_by_outcome;
   double wall_s = 0;

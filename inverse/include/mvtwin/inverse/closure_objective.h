@@ -52,6 +52,8 @@ class ClosureObjective {
   ClosureObjective(const Patient& patient, ParameterSpace space, ObjectiveOptions options = {});
 
   const ParameterSpace& space() const { return space_; }
+  const Patient& patient() const { return *patient_; }
+  const ObjectiveOptions& options() const { return options_; }
   const std::vector<int>& frames() const { return frames_; }
   int num_residuals() const { return num_residuals_; }
 
