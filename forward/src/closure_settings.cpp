@@ -100,6 +100,8 @@ const std::map<std::string, Field>& fields() {
     integer("layers", [](ClosureOptions& o) -> int& { return o.model.layers; });
     integer("marginal_chordae", [](ClosureOptions& o) -> int& { return o.model.marginal_chordae; });
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
+    integer("settle_newton_iterations",
+            [](ClosureOptions& o) -> int& { return o.settle_newton_iterations; });
     integer("pcg_max_iterations",
             [](ClosureOptions& o) -> int& { return o.solver.pcg_max_iterations; });
     integer("refactor_iterations",

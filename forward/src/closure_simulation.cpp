@@ -61,6 +61,8 @@ bool ClosureOptions::is_valid(std::string* error) const {
   }
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
+  if (settle_newton_iterations < 1 || settle_newton_iterations > 100)
+    return bad("settle_newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
@@ -189,6 +191,7 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
   // settle_mm. Implicit Euler's large steps are damped Newton steps toward the equilibrium.
   if (opt.settle_mm > 0) {
     integrator.disable_friction();
+    integrator.set_newton_iterations(opt.settle_newton_iterations);
     double h = opt.dt;
     while (settle_s < opt.settle_max_s - 1e-12) {
       const ValveState before = state;

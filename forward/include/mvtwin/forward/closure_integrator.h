@@ -76,6 +76,8 @@ class ClosureIntegrator {
   void disable_friction() {
     if (contact_) contact_->set_friction(0.0);
   }
+  /// Newton iterations per step from now on (the settling phase's own count).
+  void set_newton_iterations(int n) { options_.newton_iterations = n; }
   /// The largest distance a free node moved between two states, mm.
   double largest_motion(const ValveState& before, const ValveState& after) const;
 

@@ -50,7 +50,10 @@ struct ClosureOptions {
   /// The largest settling step, s (one linearization per step: at 0.32 s the steps wander
   /// instead of settling, docs/forward-status.md).
   double settle_max_dt = 0.08;
-  double settle_max_s = 5.0;        ///< settling gives up (the valve still moving) after this, s
+  double settle_max_s = 5.0;  ///< settling gives up (the valve still moving) after this, s
+  /// Newton iterations per settling step (up to newton_tolerance): with one, patient 4's large
+  /// steps still moved 0.32 mm each after 5 s; with 3 it stopped after 2 s (forward-status.md).
+  int settle_newton_iterations = 3;
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
