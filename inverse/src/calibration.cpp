@@ -546,14 +546,16 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
         best_step = static_cast<int>(k);
       }
     }
+    char line[200];
+    if (best_step < 0) {
+      std::snprintf(line, sizeof line, "Gauss-Newton step not kept (no damping lowered the error)");
+    } else {
+      std::snprintf(line, sizeof line, "Gauss-Newton step kept (damping %g)",
+                    dampings[static_cast<size_t>(best_step)]);
+    }
     char errors[80];
-    std::snprintf(errors, sizeof errors, "%.4f -> %.4f mm", at.mean_mm, kept.mean_mm);
-    r.refinement =
-        (best_step < 0 ? std::string("Gauss-Newton step not kept (no damping lowered "
-                                     "the error)")
-                       : "Gauss-Newton step kept (damping " +
-                             std::to_string(dampings[static_cast<size_t>(best_step)]) + ")") +
-        ": " + errors + " on the " + model_size(model) + " model";
+    std::snprintf(errors, sizeof errors, ": %.4f -> %.4f mm on the ", at.mean_mm, kept.mean_mm);
+    r.refinement = line + std::string(errors) + model_size(model) + " model";
     for (const HistoryEntry& e : tf.history()) history.push_back(e);
   }
   r.error_after_mm = kept.mean_mm;
@@ -595,11 +597,9 @@ CalibrationRecord make_calibration_record(const CalibrationResult& r, const Pati
   if (r.search_simulations > 0 && o.search_model) {
     const auto model = forward::describe_result_options(sim);
     search.clear();
-    for (const auto& [k, v] : forward::describe_result_options(*o.search_model)) {
-      bool same = false;
-      for (const auto& [mk, mv] : model) same = same || (mk == k && mv == v);
-      if (!same) search += (search.empty() ? "" : ",") + k + "=" + v;
-    }
+    for (const auto& kv : forward::describe_result_options(*o.search_model))
+      if (std::find(model.begin(), model.end(), kv) == model.end())
+        search += (search.empty() ? "" : ",") + kv.first + "=" + kv.second;
   }
   c.options.emplace_back("fit_search_model", search);
   c.search_simulations = r.search_simulations;

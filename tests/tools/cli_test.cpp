@@ -16,6 +16,7 @@
 #include "mvtwin/core/surface_mesh_io.h"
 #include "mvtwin/detection/segmentation_fit.h"
 
+#include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/patient_file.h"
 
 namespace {
@@ -92,6 +93,38 @@ TEST_F(Cli, PhantomInfoExport) {
   ASSERT_EQ(run("phantom --seed 4 --out " + path("q.h5")).code, 0);
   const auto a = mvtwin::read_patient(path("p.h5")), b = mvtwin::read_patient(path("q.h5"));
   EXPECT_EQ(a.sequence.frames[0].la_surface->points(), b.sequence.frames[0].la_surface->points());
+}
+
+TEST_F(Cli, CalibrateSearchesOnTheSearchModelAndRecordsIt) {
+  ASSERT_EQ(run("phantom --seed 4 --simulate-closure --quick --out " + path("obs.h5")).code, 0);
+  const std::string base = "calibrate " + path("obs.h5") +
+                           " --fit restlength_factor_anterolateral_marginal --no-scan "
+                           "--max-sims 6 --set ures=16 --set vres=8 --out " +
+                           path("c.h5");
+  CmdResult r = run(base + " --search-set ures=12 --search-set vres=6");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("search on the 12 x 6 model"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("refine on the 16 x 8 model"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("searched on a cheaper model"), std::string::npos) << r.out;
+  const mvtwin::CalibrationRecord c = mvtwin::read_calibration_file(path("c.h5"));
+  EXPECT_GT(c.search_simulations, 0);
+  EXPECT_GT(c.simulations, c.search_simulations);
+  EXPECT_TRUE(std::isfinite(c.search_error_after_mm));
+  EXPECT_NE(c.refinement.find("on the 16 x 8 model"), std::string::npos) << c.refinement;
+  bool recorded = false;
+  for (const auto& [k, v] : c.options) recorded |= k == "fit_search_model" && v == "ures=12,vres=6";
+  EXPECT_TRUE(recorded) << "the search model is recorded by its differences";
+  // A patient parameter is not a model option: refused by name, nothing replaced.
+  r = run(base + " --force --search-set peak_pressure_mmhg=80");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--search-set"), std::string::npos) << r.err;
+  EXPECT_EQ(mvtwin::read_calibration_file(path("c.h5")).search_simulations, c.search_simulations);
+  // Contradicting options are a usage error; 16 x 8 has no default search model.
+  EXPECT_EQ(run(base + " --force --no-search-model --search-set ures=12").code, 2);
+  r = run(base + " --force");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(mvtwin::read_calibration_file(path("c.h5")).search_simulations, 0);
+  EXPECT_EQ(r.out.find("searched on a cheaper model"), std::string::npos) << r.out;
 }
 
 TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {

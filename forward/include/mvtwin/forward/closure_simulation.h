@@ -47,8 +47,8 @@ struct ClosureOptions {
   /// shows it, instead of lagging behind the load through the damping (docs/forward-status.md).
   /// 0 = off: the state when the load peaks (the paper's end state).
   double settle_mm = 0.0;
-  /// The largest settling step, s (one linearization per step: at 0.32 s the steps wander
-  /// instead of settling, docs/forward-status.md).
+  /// The largest settling step, s (measured with one linearization per step: at 0.32 s the
+  /// steps wandered instead of settling, docs/forward-status.md).
   double settle_max_dt = 0.08;
   double settle_max_s = 5.0;  ///< settling gives up (the valve still moving) after this, s
   /// Newton iterations per settling step (up to newton_tolerance): with one, patient 4's large

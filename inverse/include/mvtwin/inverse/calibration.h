@@ -61,7 +61,7 @@ struct CalibrationOptions {
   /// Called after every improvement and every iteration (the simulations counted over both
   /// models, the best error on the model the stage runs on).
   std::function<void(int iteration, double best_mm, int simulations)> progress;
-  /// Called when a stage begins: "search on the 20 x 30 model", "refine on the 30 x 30 model".
+  /// Called when a stage begins: "search on the 24 x 24 model", "refine on the 30 x 30 model".
   std::function<void(const std::string& stage)> stage;
 
   bool is_valid(std::string* error) const;
