@@ -38,16 +38,10 @@ int run_study_cohort(const StudyCohortArgs& args) {
   o.rating = args.rating;
   o.restlength_tolerance = args.restlength_tolerance;
   for (const auto& s : args.sets) forward::apply_setting(s, &o.model, &o.defaults);
-  // The search model is the reporting model at 20 x 30 unless --fit-set says otherwise (the
-  // quick size searches on its own coarse model).
-  if (!args.quick) {
-    const int vres = o.model.model.vres;
-    o.fit_model = o.model;
-    o.fit_model.model.ures = studies::CohortStudyOptions::default_fit_model().model.ures;
-    o.fit_model.model.vres = vres;
-  } else {
-    o.fit_model = o.model;
-  }
+  // The search model follows calibrate's rule (inverse::search_model_for: 0.8 of the grid in
+  // each direction from 25 points around the annulus, else the model itself) unless --fit-set
+  // says otherwise.
+  o.fit_model = inverse::search_model_for(o.model).value_or(o.model);
   for (const auto& s : args.fit_sets)
     apply_model_setting(s, &o.fit_model, "--fit-set: the calibration fits the parameters");
   for (const auto& s : args.observe_sets)
@@ -138,8 +132,9 @@ void register_study_cohort(CLI::App* study, Context& ctx) {
       "--set", a->sets,
       "name=value: the simulation model (ures=20, dt=0.005, ...) or a default parameter");
   cmd->add_option("--fit-set", a->fit_sets,
-                  "name=value: the model the calibration searches with (default ures=20 on the "
-                  "--set model's other options)");
+                  "name=value: the model the calibration searches with before refining on the "
+                  "--set model (default: 0.8 of its grid from 25 points around the annulus, as "
+                  "calibrate)");
   cmd->add_option("--observe-set", a->observe_sets,
                   "name=value: the virtual patients' observation model");
   cmd->add_option("--noise", a->noise, "observation noise SD, mm")->default_val(0.5);

@@ -51,10 +51,11 @@ struct CohortStudyOptions {
   /// The model every error is reported on (default parameters, and the calibrated ones): the
   /// paper's grid by default.
   forward::ClosureOptions model;
-  /// The model the calibration searches with: 20 x 30 by default, about 2x faster than the
-  /// paper's grid; its fitted parameters are then simulated once on `model`, so that the error
-  /// after calibration is measured like the error before (what the cheaper search costs shows
-  /// as the difference; docs/studies.md).
+  /// The model the calibration searches with: by default `calibrate`'s rule
+  /// (inverse::search_model_for: 24 x 24 for the paper's 30 x 30, about 0.6 of its cost); its fit
+  /// is then refined on `model` (inverse::CalibrationOptions:: search_model), so that the error
+  /// after calibration is measured like the error before (docs/studies.md). The same as `model`:
+  /// the whole calibration runs on `model`.
   forward::ClosureOptions fit_model = default_fit_model();
   static forward::ClosureOptions default_fit_model();
   ValveParameters defaults;  ///< the default parameters (the start)
@@ -98,13 +99,17 @@ struct CohortPatient {
   double default_s = 0;
   // calibration (NaN when not calibrated)
   double error_calibrated_mm = 0;  ///< on `model`, like error_default_mm
-  /// The calibration's own figures, on `fit_model`: before (the defaults) and after.
+  /// The calibration's search figures, on `fit_model`: before (the defaults) and after its
+  /// search (before the refinement on `model`).
   double error_default_fit_model_mm = 0, error_calibrated_fit_model_mm = 0;
   double calibrate_s = 0;
   int simulations = 0, failed_simulations = 0;
   /// The failed candidate simulations by typed outcome (outcome_name -> count).
   std::map<std::string, int> failures_by_outcome;
   std::string termination;  ///< why the optimizer stopped
+  /// What the refinement on `model` did after the search on `fit_model` (empty when they are
+  /// the same model): see inverse::CalibrationResult::refinement.
+  std::string refinement;
   /// The noise SD the fit estimates from its residuals, mm (what a good fit's error nears).
   double noise_fit_mm = 0;
   nlohmann::json fitted, truth;  ///< name -> value (truth only for virtual patients)
