@@ -497,7 +497,11 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   os << "  </Discrete>\n";
 
   os << "  <LoadData>\n" << lc.str() << "  </LoadData>\n";
-  os << "  <Output>\n    <plotfile type=\"febio\">\n      <var type=\"displacement\"/>\n"
+  // The node positions in mvtwin's node order at every converged step, as text: the closed
+  // valve compares with mvtwin's without a reader for FEBio's binary plot file.
+  os << "  <Output>\n    <logfile>\n      <node_data data=\"x;y;z\" delim=\" \" "
+     << "node_set=\"mvtwin_order\" file=\"" << kFebioNodeLog << "\"/>\n    </logfile>\n"
+     << "    <plotfile type=\"febio\">\n      <var type=\"displacement\"/>\n"
      << "      <var type=\"stress\"/>\n      <var type=\"contact gap\"/>\n"
      << "      <var type=\"contact pressure\"/>\n    </plotfile>\n  </Output>\n";
   os << "</febio_spec>\n";

@@ -110,6 +110,11 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "<time_stepper type=\"default\">"), 1);
   EXPECT_EQ(count(feb, "<max_retries>25</max_retries>"), 1);
   EXPECT_EQ(count(feb, "<optimize_bw>1</optimize_bw>"), 1);
+  // The node positions logged as text in mvtwin's order.
+  EXPECT_EQ(count(feb,
+                  "<node_data data=\"x;y;z\" delim=\" \" node_set=\"mvtwin_order\" "
+                  "file=\"febio_nodes.txt\"/>"),
+            1);
   EXPECT_EQ(count(feb, "type=\"contact potential\""), 1);
   const FebioContactPotential cp =
       febio_contact_potential(o.contact, o.contact.stiffness_per_area(scene.peak_pressure_mpa));

@@ -81,6 +81,10 @@ struct RimFace {
 };
 std::vector<RimFace> rim_faces(const ClosureScene& scene);
 
+/// The log file FEBio writes beside valve.feb: at every converged step, one line per node of
+/// mvtwin's model in mvtwin's order (node set mvtwin_order), "FEBio-id x y z" in mm.
+inline constexpr const char* kFebioNodeLog = "febio_nodes.txt";
+
 /// `guarded`: elements mvtwin's inversion guard held (ClosureResult::guarded_elements). FEBio has
 /// no such guard and its orthotropic elastic law (St Venant-Kirchhoff) lets them collapse, so
 /// they are written as compressible neo-Hookean (E = the leaflet's cross-fibre modulus, v = its
