@@ -401,10 +401,11 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       try {
         const Patient p = load(e);
         const auto t0 = std::chrono::steady_clock::now();
-        // The objective is the reporting model; a different fit model is the search model
-        // (start, scan and optimizer), and the calibration refines its fit on the reporting
-        // model (inverse::CalibrationOptions::search_model), so that the calibrated error is
-        // the reporting model's best, measured as the defaults were.
+        // The objective is the reporting model and the fit model the search model (start,
+        // scan and optimizer); calibrate() refines the search's fit on the reporting model, or
+        // runs on it alone when the two are the same model (inverse::CalibrationOptions::
+        // search_model), so that the calibrated error is the reporting model's best, measured
+        // as the defaults were.
         inverse::ObjectiveOptions oo;
         oo.simulation = o.model;
         inverse::ClosureObjective obj(p, space_template, oo);
@@ -412,9 +413,9 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
         co.method = o.method;
         co.jobs = std::max(1, o.jobs / std::max(1, std::min(o.jobs, n - i)));
         co.max_simulations = o.max_simulations;
-        if (describe(o.fit_model) != describe(o.model)) co.search_model = o.fit_model;
+        co.search_model = o.fit_model;
         const inverse::CalibrationResult r = inverse::calibrate(obj, co);
-        const bool searched = co.search_model.has_value();
+        const bool searched = r.search_simulations > 0;
         c.error_default_fit_model_mm = searched ? r.search_error_before_mm : r.error_before_mm;
         c.error_calibrated_fit_model_mm = searched ? r.search_error_after_mm : r.error_after_mm;
         c.error_calibrated_mm = r.error_after_mm;
