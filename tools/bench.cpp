@@ -99,8 +99,9 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
   auto physics = [](const std::vector<std::pair<std::string, std::string>>& o) {
     const auto r = forward::result_options(o);
     std::map<std::string, std::string> m(r.begin(), r.end());
-    for (const char* k : {"record_every", "refactor_iterations", "pcg_max_iterations",
-                          "rotated_preconditioner", "single_precision_preconditioner"})
+    for (const char* k :
+         {"record_every", "refactor_iterations", "pcg_max_iterations", "rotated_preconditioner",
+          "single_precision_preconditioner", "warm_start"})
       m.erase(k);
     if (!m.count("step_error_mm")) m["step_error_mm"] = "0";
     if (m["step_error_mm"] == "0") m.erase("max_dt");

@@ -113,6 +113,7 @@ const std::map<std::string, Field>& fields() {
             [](ClosureOptions& o) -> bool& { return o.solver.single_precision_preconditioner; });
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.rotated_preconditioner; });
+    boolean("warm_start", [](ClosureOptions& o) -> bool& { return o.solver.warm_start; });
     boolean("curved", [](ClosureOptions& o) -> bool& { return o.model.curved; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact.enabled; });
     boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact.ccd; });

@@ -82,6 +82,7 @@ std::string ClosureSummary::brief_report() const {
      << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
      << analyses << " analyses (" << orderings_reused << " reusing an ordering), " << pcg_iterations
      << " PCG iterations, " << preconditioner_applications << " preconditioner applications, "
+     << warm_starts << " warm starts (" << warm_accepted << " needing no iteration), "
      << unconverged_solves << " unconverged; contact: " << contacts << " pairs at the end (max "
      << max_contacts << ", closest " << min_contact_distance_mm << " mm), " << contact_searches
      << " searches, " << contact_reused << " reused the candidate list; " << interpenetrating_nodes
@@ -257,6 +258,8 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"factorizations", s.factorizations},
                  {"pcg_iterations", s.pcg_iterations},
                  {"preconditioner_applications", s.preconditioner_applications},
+                 {"warm_starts", s.warm_starts},
+                 {"warm_accepted", s.warm_accepted},
                  {"orderings_reused", s.orderings_reused},
                  {"unconverged_solves", s.unconverged_solves},
                  {"final_update_norm", s.final_update_norm},

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <Eigen/CholmodSupport>
+#include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 
 namespace mvtwin::forward {
@@ -372,6 +373,35 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
   FloatSupernodal float_;
 };
 
+/// The combination x = sum c_i v_i that minimizes the energy norm of the error, (V^T A V) c =
+/// V^T b, with its residual r = b - A x (Av holds A v_i). False when the projected matrix is
+/// not positive definite (dependent or degenerate vectors).
+bool galerkin(const std::vector<const Eigen::VectorXd*>& v,
+              const std::vector<const Eigen::VectorXd*>& Av, const Eigen::VectorXd& b,
+              Eigen::VectorXd* x, Eigen::VectorXd* r) {
+  const int k = static_cast<int>(v.size());
+  Eigen::MatrixXd G(k, k);
+  Eigen::VectorXd rhs(k);
+  for (int i = 0; i < k; ++i) {
+    rhs[i] = v[i]->dot(b);
+    for (int j = 0; j <= i; ++j) G(i, j) = G(j, i) = v[i]->dot(*Av[j]);
+  }
+  const Eigen::LLT<Eigen::MatrixXd> llt(G);
+  if (llt.info() != Eigen::Success) return false;
+  // Nearly dependent vectors: the smallest pivot against the largest diagonal entry.
+  const Eigen::VectorXd d = llt.matrixL().toDenseMatrix().diagonal();
+  if (!(d.minCoeff() * d.minCoeff() > 1e-12 * G.diagonal().maxCoeff())) return false;
+  const Eigen::VectorXd c = llt.solve(rhs);
+  if (!c.allFinite()) return false;
+  x->setZero(b.size());
+  *r = b;
+  for (int i = 0; i < k; ++i) {
+    *x += c[i] * *v[i];
+    *r -= c[i] * *Av[i];
+  }
+  return true;
+}
+
 }  // namespace
 
 struct StepSolver::Impl {
@@ -450,6 +480,30 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
     *x = Eigen::VectorXd::Zero(b.size());
     return true;
   }
+  // Warm start: the best combination of the caller's guesses (earlier steps' updates) in A's
+  // energy; the answer when it already meets the tolerance (no factorization, no preconditioner
+  // application: the stale flag stays for the next solve).
+  std::vector<const Eigen::VectorXd*> basis, Abasis;
+  std::vector<Eigen::VectorXd> Aguesses;
+  if (opt_.warm_start && A.guesses) {
+    Aguesses.reserve(A.guesses->size());
+    for (const Eigen::VectorXd& g : *A.guesses) {
+      if (g.size() != b.size() || !g.allFinite()) continue;
+      Aguesses.emplace_back();
+      A.multiply(g, &Aguesses.back());
+      basis.push_back(&g);
+      Abasis.push_back(&Aguesses.back());
+    }
+  }
+  if (!basis.empty()) {
+    ++stats_.warm_starts;
+    Eigen::VectorXd xg, rg;
+    if (galerkin(basis, Abasis, b, &xg, &rg) && rg.norm() <= opt_.pcg_tolerance * bnorm) {
+      ++stats_.warm_accepted;
+      *x = std::move(xg);
+      return true;
+    }
+  }
   bool fresh = false;
   if (opt_.kind != LinearSolver::kReusedFactorPcg || !impl_->have_factor || impl_->stale) {
     if (!factorize(A, why)) return false;
@@ -479,6 +533,17 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
     Eigen::VectorXd Ax;
     A.multiply(*xk, &Ax);
     Eigen::VectorXd r = b - Ax;
+    if (!basis.empty() && r.norm() > opt_.pcg_tolerance * bnorm) {
+      // The best combination of the preconditioned b and the guesses.
+      std::vector<const Eigen::VectorXd*> v = basis, Av = Abasis;
+      v.insert(v.begin(), xk);
+      Av.insert(Av.begin(), &Ax);
+      Eigen::VectorXd xc, rc;
+      if (galerkin(v, Av, b, &xc, &rc) && rc.norm() < r.norm()) {
+        *xk = std::move(xc);
+        r = std::move(rc);
+      }
+    }
     *iterations = 0;
     if (r.norm() > opt_.pcg_tolerance * bnorm) {
       Eigen::VectorXd z = precondition(r);

@@ -350,6 +350,43 @@ TEST(ClosureSimulation, ErrorControlledStepsEndNearThePapersFixedSteps) {
   EXPECT_EQ(b.summary.interpenetrating_nodes, 0);
 }
 
+// Warm-started solves (StepSolverOptions::warm_start: the last two steps' updates join the
+// preconditioned right-hand side in a Galerkin projection) against cold ones and against solves
+// to a tight tolerance, on the default patient: fewer preconditioner applications, and the
+// closed surface no farther from the tightly solved one than the cold run's.
+TEST(ClosureSimulation, WarmStartedSolvesSaveWorkAtTheSameError) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "three closures take minutes under AddressSanitizer; run in the -Werror build";
+#endif
+  const Patient p = make_virtual_patient(1);
+  ClosureOptions cold = coarse_default_patient_options();
+  cold.solver.warm_start = false;
+  ClosureOptions warm = coarse_default_patient_options();
+  ASSERT_TRUE(warm.solver.warm_start);  // the default
+  ClosureOptions tight = cold;
+  tight.solver.pcg_tolerance = 1e-6;
+  tight.solver.pcg_max_iterations = 200;
+  const ClosureResult c = simulate_closure(p.sequence, p.truth->parameters, cold);
+  const ClosureResult w = simulate_closure(p.sequence, p.truth->parameters, warm);
+  const ClosureResult t = simulate_closure(p.sequence, p.truth->parameters, tight);
+  ASSERT_TRUE(c.summary.converged()) << c.summary.reason;
+  ASSERT_TRUE(w.summary.converged()) << w.summary.reason;
+  ASSERT_TRUE(t.summary.converged()) << t.summary.reason;
+  EXPECT_EQ(c.summary.warm_starts, 0);
+  EXPECT_GT(w.summary.warm_starts, w.summary.steps - 5);
+  const Apart cw = closed_surfaces_apart(c, w), ct = closed_surfaces_apart(c, t),
+              wt = closed_surfaces_apart(w, t);
+  std::cout << "cold: " << c.summary.brief_report() << "\nwarm: " << w.summary.brief_report()
+            << "\napart, mean / max mm: cold-warm " << cw.mean_mm << " / " << cw.max_mm
+            << ", cold-tight " << ct.mean_mm << " / " << ct.max_mm << ", warm-tight " << wt.mean_mm
+            << " / " << wt.max_mm << "\n";
+  EXPECT_LT(w.summary.preconditioner_applications, 0.85 * c.summary.preconditioner_applications);
+  EXPECT_LE(w.summary.factorizations, c.summary.factorizations);
+  EXPECT_LT(wt.mean_mm, 0.6 * ct.mean_mm);  // measured: a quarter
+  EXPECT_LT(cw.mean_mm, 0.05);
+  EXPECT_EQ(w.summary.interpenetrating_nodes, 0);
+}
+
 // A clip (Mansi et al. 2012, Sec. 2.4) between the middles of the two free edges: during the clip
 // phase the sites, about 20 mm apart in the open valve, are pulled together until the leaflets
 // touch; the clipped open valve has a smaller orifice, and the closure that follows keeps the clip

@@ -1,6 +1,9 @@
 #include "mvtwin/forward/step_solver.h"
 
+#include <limits>
+
 #include <gtest/gtest.h>
+#include <Eigen/SparseCholesky>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/rng.h"
@@ -159,6 +162,93 @@ TEST(StepSolver, ASecondSolverReusesTheOrderingAndSolvesBitForBit) {
   ASSERT_TRUE(other.solve(B, b.head(36 * 36), &x3, &why)) << why;
   EXPECT_EQ(other.stats().orderings_reused, 0);
   EXPECT_LT((B * x3 - b.head(36 * 36)).norm(), 0.1 * b.head(36 * 36).norm());
+}
+
+// A System over a full symmetric matrix with optional guesses.
+StepSolver::System system_of(const Eigen::SparseMatrix<double>& A,
+                             const Eigen::SparseMatrix<double>& lower,
+                             const std::vector<Eigen::VectorXd>* guesses) {
+  StepSolver::System s;
+  s.multiply = [&A](const Eigen::VectorXd& v, Eigen::VectorXd* y) { *y = A * v; };
+  s.lower = [&lower]() -> const Eigen::SparseMatrix<double>& { return lower; };
+  s.guesses = guesses;
+  return s;
+}
+
+// Warm start: a guess that already solves the system is the answer, with no factorization and
+// no preconditioner application; one that does not still gives a solution to the tolerance.
+TEST(StepSolver, AGuessThatSolvesTheSystemNeedsNoFactorization) {
+  Rng rng(31);
+  const Eigen::SparseMatrix<double> A = laplacian(20, 0.1);
+  const Eigen::SparseMatrix<double> lower = A.triangularView<Eigen::Lower>();
+  Eigen::VectorXd b(A.rows());
+  for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
+  const Eigen::VectorXd exact = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(A).solve(b);
+  StepSolverOptions o;
+  o.pcg_tolerance = 1e-6;
+  std::string why;
+  {
+    // Twice the solution: the best multiple of it is the solution itself.
+    const std::vector<Eigen::VectorXd> guesses{2.0 * exact};
+    StepSolver s(o);
+    Eigen::VectorXd x;
+    ASSERT_TRUE(s.solve(system_of(A, lower, &guesses), b, &x, &why)) << why;
+    EXPECT_LT((A * x - b).norm(), 1e-6 * b.norm());
+    EXPECT_EQ(s.stats().warm_accepted, 1);
+    EXPECT_EQ(s.stats().factorizations, 0);
+    EXPECT_EQ(s.stats().applications, 0);
+  }
+  {
+    // Noise, a vector of zeros and a non-finite one: ignored or outweighed, the answer meets
+    // the tolerance all the same.
+    Eigen::VectorXd noise(b.size()), nan = Eigen::VectorXd::Zero(b.size());
+    for (int i = 0; i < b.size(); ++i) noise[i] = rng.normal();
+    nan[3] = std::numeric_limits<double>::quiet_NaN();
+    const std::vector<Eigen::VectorXd> guesses{noise, Eigen::VectorXd::Zero(b.size()), nan};
+    StepSolver s(o);
+    Eigen::VectorXd x;
+    ASSERT_TRUE(s.solve(system_of(A, lower, &guesses), b, &x, &why)) << why;
+    EXPECT_LT((A * x - b).norm(), 1e-6 * b.norm());
+    EXPECT_EQ(s.stats().warm_accepted, 0);
+    EXPECT_EQ(s.stats().factorizations, 1);
+  }
+}
+
+// A sequence of slowly changing systems, as the steps of a closure: with the last two solutions
+// as guesses, the reused factor needs fewer preconditioner applications for the same tolerance,
+// and every solution still meets it.
+TEST(StepSolver, EarlierSolutionsAsGuessesSaveApplications) {
+  Rng rng(32);
+  Eigen::VectorXd b0(30 * 30), db(30 * 30);
+  for (int i = 0; i < b0.size(); ++i) {
+    b0[i] = rng.normal();
+    db[i] = rng.normal();
+  }
+  int applications[2] = {0, 0};
+  for (bool warm : {false, true}) {
+    StepSolverOptions o;
+    o.warm_start = warm;
+    o.pcg_tolerance = 0.01;
+    StepSolver s(o);
+    std::vector<Eigen::VectorXd> last;
+    for (int k = 0; k < 40; ++k) {
+      const Eigen::SparseMatrix<double> A = laplacian(30, 0.1 + 0.01 * k);
+      const Eigen::SparseMatrix<double> lower = A.triangularView<Eigen::Lower>();
+      const Eigen::VectorXd b = b0 + 0.02 * k * db;
+      Eigen::VectorXd x;
+      std::string why;
+      ASSERT_TRUE(s.solve(system_of(A, lower, warm ? &last : nullptr), b, &x, &why)) << why;
+      EXPECT_LE((A * x - b).norm(), 0.01 * b.norm() * (1 + 1e-12)) << k;
+      last.insert(last.begin(), x);
+      if (last.size() > 2) last.pop_back();
+    }
+    applications[warm] = s.stats().applications;
+    if (!warm) {
+      EXPECT_EQ(s.stats().warm_starts, 0);
+    }
+  }
+  EXPECT_LT(applications[1], applications[0] * 3 / 4)
+      << applications[1] << " with guesses, " << applications[0] << " without";
 }
 
 TEST(StepSolver, InvalidOptionsAreRefusedNamingTheField) {

@@ -156,6 +156,11 @@ class ClosureIntegrator {
   std::optional<SymmetricBlockMatrix> system_;
   int first_cable_clique_ = 0;
   StepSolver linear_;
+  /// The first Newton updates of the last solved steps (most recent first) and their step
+  /// sizes: scaled by the step ratio, the next step's guesses for its update
+  /// (StepSolverOptions::warm_start).
+  static constexpr size_t kWarmUpdates = 2;
+  std::vector<std::pair<Eigen::VectorXd, double>> last_updates_;
   double clip_phase_ = 0.0;
   std::vector<double> spring_start_;
 

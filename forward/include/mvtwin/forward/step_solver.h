@@ -2,6 +2,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -39,6 +40,9 @@ struct StepSolverOptions {
   bool single_precision_preconditioner = true;
   /// Use System::rotate when the system has one (rotated preconditioner, see System).
   bool rotated_preconditioner = true;
+  /// Use the system's guesses (System::guesses): with earlier steps' updates, a step whose
+  /// update is close to a combination of them needs fewer preconditioner applications, or none.
+  bool warm_start = true;
 
   bool is_valid(std::string* error) const;
 };
@@ -61,8 +65,10 @@ class StepSolver {
  public:
   struct Stats {
     int analyses = 0, factorizations = 0, solves = 0, pcg_iterations = 0, pcg_fallbacks = 0;
-    int applications = 0;  ///< preconditioner (factor) applications
-    int unconverged = 0;   ///< solves that kept CG's last iterate after a fresh factorization
+    int applications = 0;   ///< preconditioner (factor) applications
+    int warm_starts = 0;    ///< solves that started from the caller's guess
+    int warm_accepted = 0;  ///< of those, solves the guess alone satisfied (no application)
+    int unconverged = 0;    ///< solves that kept CG's last iterate after a fresh factorization
     double factorize_s = 0, apply_s = 0;  ///< time in factorizations and in factor solves
     double analyze_s = 0;  ///< part of factorize_s spent in symbolic analyses (orderings)
     /// Analyses that reused the ordering of an earlier solver in the process (same pattern).
@@ -79,6 +85,10 @@ class StepSolver {
     /// factorization, so that the stale factor stays a good preconditioner under large
     /// rotations.
     std::function<void(Eigen::VectorXd* v, bool transpose)> rotate;
+    /// Optional guesses of the solution (earlier systems' solutions, scaled to this one). With
+    /// warm_start, their best combination in A's energy is the answer when it meets the
+    /// tolerance; else CG starts from the best combination of them and the preconditioned b.
+    const std::vector<Eigen::VectorXd>* guesses = nullptr;
   };
 
   /// Throws mvtwin::Error for invalid options.
