@@ -318,7 +318,7 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
     // Under a smoothly varying load the update (h times the acceleration) changes little from
     // one step to the next: the last one, scaled to this step, starts the solve.
     std::vector<Eigen::VectorXd> guesses;
-    if (it == 0)
+    if (it == 0 && options_.solver.warm_start)
       for (const auto& [u, hu] : last_updates_) guesses.push_back(u * (h / hu));
     A.guesses = guesses.empty() ? nullptr : &guesses;
     Eigen::VectorXd dv;
@@ -328,7 +328,7 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
     counters_.solve_s += seconds_since(ts) - matrix_s;
     counters_.assembly_s += matrix_s;
     if (!solved) return failed(Outcome::kLinearSolver, why);
-    if (it == 0) {
+    if (it == 0 && options_.solver.warm_start) {
       if (last_updates_.size() == kWarmUpdates) last_updates_.pop_back();
       last_updates_.insert(last_updates_.begin(), {dv, h});
     }

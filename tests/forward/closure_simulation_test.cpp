@@ -362,7 +362,8 @@ TEST(ClosureSimulation, WarmStartedSolvesSaveWorkAtTheSameError) {
   ClosureOptions cold = coarse_default_patient_options();
   cold.solver.warm_start = false;
   ClosureOptions warm = coarse_default_patient_options();
-  ASSERT_TRUE(warm.solver.warm_start);  // the default
+  ASSERT_FALSE(ClosureOptions{}.solver.warm_start);  // the default is off
+  warm.solver.warm_start = true;
   ClosureOptions tight = cold;
   tight.solver.pcg_tolerance = 1e-6;
   tight.solver.pcg_max_iterations = 200;

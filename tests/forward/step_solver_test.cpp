@@ -185,6 +185,7 @@ TEST(StepSolver, AGuessThatSolvesTheSystemNeedsNoFactorization) {
   for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
   const Eigen::VectorXd exact = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(A).solve(b);
   StepSolverOptions o;
+  o.warm_start = true;
   o.pcg_tolerance = 1e-6;
   std::string why;
   {
