@@ -316,7 +316,7 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
     const auto ts = Clock::now();
     const double matrix_before = counters_.matrix_assembly_s;
     // Under a smoothly varying load the update (h times the acceleration) changes little from
-    // one step to the next: the last one, scaled to this step, starts the solve.
+    // one step to the next: the last two, scaled to this step, are the solver's guesses.
     std::vector<Eigen::VectorXd> guesses;
     if (it == 0 && options_.solver.warm_start)
       for (const auto& [u, hu] : last_updates_) guesses.push_back(u * (h / hu));

@@ -82,7 +82,7 @@ std::string ClosureSummary::brief_report() const {
      << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
      << analyses << " analyses (" << orderings_reused << " reusing an ordering), " << pcg_iterations
      << " PCG iterations, " << preconditioner_applications << " preconditioner applications, "
-     << warm_starts << " warm starts (" << warm_accepted << " needing no iteration), "
+     << warm_starts << " warm starts (" << warm_accepted << " answered by the guesses alone), "
      << unconverged_solves << " unconverged; contact: " << contacts << " pairs at the end (max "
      << max_contacts << ", closest " << min_contact_distance_mm << " mm), " << contact_searches
      << " searches, " << contact_reused << " reused the candidate list; " << interpenetrating_nodes

@@ -389,7 +389,7 @@ bool galerkin(const std::vector<const Eigen::VectorXd*>& v,
   const Eigen::LLT<Eigen::MatrixXd> llt(G);
   if (llt.info() != Eigen::Success) return false;
   // Nearly dependent vectors: the smallest pivot against the largest diagonal entry.
-  const Eigen::VectorXd d = llt.matrixL().toDenseMatrix().diagonal();
+  const Eigen::VectorXd d = llt.matrixLLT().diagonal();
   if (!(d.minCoeff() * d.minCoeff() > 1e-12 * G.diagonal().maxCoeff())) return false;
   const Eigen::VectorXd c = llt.solve(rhs);
   if (!c.allFinite()) return false;
@@ -491,6 +491,12 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
       if (g.size() != b.size() || !g.allFinite()) continue;
       Aguesses.emplace_back();
       A.multiply(g, &Aguesses.back());
+      // A guess without energy (zero) would make the projection singular and so discard the
+      // others with it.
+      if (!(g.dot(Aguesses.back()) > 0)) {
+        Aguesses.pop_back();
+        continue;
+      }
       basis.push_back(&g);
       Abasis.push_back(&Aguesses.back());
     }

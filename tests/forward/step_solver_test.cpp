@@ -164,6 +164,13 @@ TEST(StepSolver, ASecondSolverReusesTheOrderingAndSolvesBitForBit) {
   EXPECT_LT((B * x3 - b.head(36 * 36)).norm(), 0.1 * b.head(36 * 36).norm());
 }
 
+// A vector of zeros but for one NaN.
+Eigen::VectorXd bad_nan(Eigen::Index n) {
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(n);
+  v[n / 2] = std::numeric_limits<double>::quiet_NaN();
+  return v;
+}
+
 // A System over a full symmetric matrix with optional guesses.
 StepSolver::System system_of(const Eigen::SparseMatrix<double>& A,
                              const Eigen::SparseMatrix<double>& lower,
@@ -198,6 +205,18 @@ TEST(StepSolver, AGuessThatSolvesTheSystemNeedsNoFactorization) {
     EXPECT_EQ(s.stats().warm_accepted, 1);
     EXPECT_EQ(s.stats().factorizations, 0);
     EXPECT_EQ(s.stats().applications, 0);
+  }
+  {
+    // The solution beside a vector of zeros and a non-finite one: those two are ignored, so the
+    // solution still answers alone.
+    const std::vector<Eigen::VectorXd> with_bad{Eigen::VectorXd::Zero(b.size()), 2.0 * exact,
+                                                bad_nan(b.size())};
+    StepSolver s(o);
+    Eigen::VectorXd x;
+    ASSERT_TRUE(s.solve(system_of(A, lower, &with_bad), b, &x, &why)) << why;
+    EXPECT_LT((A * x - b).norm(), 1e-6 * b.norm());
+    EXPECT_EQ(s.stats().warm_accepted, 1);
+    EXPECT_EQ(s.stats().factorizations, 0);
   }
   {
     // Noise, a vector of zeros and a non-finite one: ignored or outweighed, the answer meets

@@ -129,7 +129,8 @@ struct ClosureSummary {
   int guarded_elements = 0;
   int analyses = 0, factorizations = 0, pcg_iterations = 0;  ///< linear-solver work
   int preconditioner_applications = 0;
-  /// Solves started from the previous step's update, and of those the ones it satisfied alone.
+  /// Solves given earlier steps' updates as guesses (warm_start), and of those the ones the
+  /// guesses answered alone (no factorization, no preconditioner application).
   int warm_starts = 0, warm_accepted = 0;
   int orderings_reused = 0;      ///< analyses that reused an ordering found earlier in the process
   int pcg_fallbacks = 0;         ///< PCG solves that gave up and factorized

@@ -70,8 +70,8 @@ class StepSolver {
   struct Stats {
     int analyses = 0, factorizations = 0, solves = 0, pcg_iterations = 0, pcg_fallbacks = 0;
     int applications = 0;   ///< preconditioner (factor) applications
-    int warm_starts = 0;    ///< solves that started from the caller's guess
-    int warm_accepted = 0;  ///< of those, solves the guess alone satisfied (no application)
+    int warm_starts = 0;    ///< solves given usable guesses (System::guesses)
+    int warm_accepted = 0;  ///< of those, solves the guesses answered alone (no application)
     int unconverged = 0;    ///< solves that kept CG's last iterate after a fresh factorization
     double factorize_s = 0, apply_s = 0;  ///< time in factorizations and in factor solves
     double analyze_s = 0;  ///< part of factorize_s spent in symbolic analyses (orderings)
