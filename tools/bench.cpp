@@ -101,7 +101,7 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
     std::map<std::string, std::string> m(r.begin(), r.end());
     for (const char* k :
          {"record_every", "refactor_iterations", "pcg_max_iterations", "rotated_preconditioner",
-          "single_precision_preconditioner", "warm_start"})
+          "single_precision_preconditioner", "single_precision_factorization", "warm_start"})
       m.erase(k);
     if (!m.count("step_error_mm")) m["step_error_mm"] = "0";
     if (m["step_error_mm"] == "0") m.erase("max_dt");

@@ -469,6 +469,7 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   result->guarded_elements.assign(ever_guarded_.begin(), ever_guarded_.end());
   const StepSolver::Stats& ls = linear_.stats();
   sum.pcg_fallbacks = ls.pcg_fallbacks;
+  sum.double_fallbacks = ls.double_fallbacks;
   sum.unconverged_solves = ls.unconverged;
   sum.factorize_s = ls.factorize_s;
   sum.precondition_s = ls.apply_s;

@@ -111,6 +111,8 @@ const std::map<std::string, Field>& fields() {
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
     boolean("single_precision_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.single_precision_preconditioner; });
+    boolean("single_precision_factorization",
+            [](ClosureOptions& o) -> bool& { return o.solver.single_precision_factorization; });
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.rotated_preconditioner; });
     boolean("warm_start", [](ClosureOptions& o) -> bool& { return o.solver.warm_start; });

@@ -83,11 +83,13 @@ std::string ClosureSummary::brief_report() const {
      << analyses << " analyses (" << orderings_reused << " reusing an ordering), " << pcg_iterations
      << " PCG iterations, " << preconditioner_applications << " preconditioner applications, "
      << warm_starts << " warm starts (" << warm_accepted << " answered by the guesses alone), "
-     << unconverged_solves << " unconverged; contact: " << contacts << " pairs at the end (max "
-     << max_contacts << ", closest " << min_contact_distance_mm << " mm), " << contact_searches
-     << " searches, " << contact_reused << " reused the candidate list; " << interpenetrating_nodes
-     << " of " << interpenetration_checked << " surface nodes inside the other leaflet; "
-     << guarded_elements << " elements held by the inversion guard";
+     << unconverged_solves << " unconverged, " << double_fallbacks
+     << " single-precision factorizations redone in double; contact: " << contacts
+     << " pairs at the end (max " << max_contacts << ", closest " << min_contact_distance_mm
+     << " mm), " << contact_searches << " searches, " << contact_reused
+     << " reused the candidate list; " << interpenetrating_nodes << " of "
+     << interpenetration_checked << " surface nodes inside the other leaflet; " << guarded_elements
+     << " elements held by the inversion guard";
   return os.str();
 }
 
@@ -262,6 +264,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"warm_accepted", s.warm_accepted},
                  {"orderings_reused", s.orderings_reused},
                  {"unconverged_solves", s.unconverged_solves},
+                 {"double_fallbacks", s.double_fallbacks},
                  {"final_update_norm", s.final_update_norm},
                  {"interpenetrating_nodes", s.interpenetrating_nodes},
                  {"guarded_elements", s.guarded_elements},

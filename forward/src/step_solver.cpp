@@ -115,6 +115,7 @@ class Factor {
   virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
   /// Threads of the supernodal single-precision factorization and substitutions (1 or 2).
   int threads = 1;
+  int double_fallbacks = 0;  ///< single-precision factorizations redone in double
 
  protected:
   /// The symbolic analysis; true when it reused an ordering found earlier in the process.
@@ -209,8 +210,14 @@ class FloatSupernodal {
   /// The factor with structure st (which must outlive this) and values x.
   void set(const SupernodalStructure& st, const double* x) {
     st_ = &st;
-    x_.resize(st.xsize);
-    for (size_t i = 0; i < st.xsize; ++i) x_[i] = static_cast<float>(x[i]);
+    own_.resize(st.xsize);
+    for (size_t i = 0; i < st.xsize; ++i) own_[i] = static_cast<float>(x[i]);
+    x_ = own_.data();
+  }
+  /// The factor's values in single precision already (x must outlive this, unchanged).
+  void set(const SupernodalStructure& st, const float* x) {
+    st_ = &st;
+    x_ = x;
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b, int threads) const {
     const int n = st_->n;
@@ -247,7 +254,7 @@ class FloatSupernodal {
   void forward(int s, Eigen::VectorXf* y, int g, Eigen::VectorXf* buf) const {
     const SupernodalStructure& st = *st_;
     const int k1 = st.super[s], nc = st.super[s + 1] - k1, nr = st.pi[s + 1] - st.pi[s];
-    const Block Ls(x_.data() + st.px[s], nr, nc);
+    const Block Ls(x_ + st.px[s], nr, nc);
     auto y1 = y->segment(k1, nc);
     Ls.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(y1);
     if (nr > nc) {
@@ -264,7 +271,7 @@ class FloatSupernodal {
   void backward(int s, Eigen::VectorXf* y) const {
     const SupernodalStructure& st = *st_;
     const int k1 = st.super[s], nc = st.super[s + 1] - k1, nr = st.pi[s + 1] - st.pi[s];
-    const Block Ls(x_.data() + st.px[s], nr, nc);
+    const Block Ls(x_ + st.px[s], nr, nc);
     auto y1 = y->segment(k1, nc);
     if (nr > nc) {
       Eigen::VectorXf t(nr - nc);
@@ -276,7 +283,8 @@ class FloatSupernodal {
   }
 
   const SupernodalStructure* st_ = nullptr;
-  std::vector<float> x_;
+  std::vector<float> own_;  // a copy rounded from double, when x_ points here
+  const float* x_ = nullptr;
 };
 
 template <typename Solver>
@@ -332,7 +340,8 @@ class FactorOf : public Factor {
 /// or should the structure not hold the matrix.
 class SupernodalFactor : public FactorOf<SupernodalLLT> {
  public:
-  explicit SupernodalFactor(bool single) : single_(single) {}
+  SupernodalFactor(bool single, bool single_factorization)
+      : single_(single), single_factorization_(single && single_factorization) {}
   Eigen::VectorXd apply(const Eigen::VectorXd& b) const override {
     if (single_ && have_float_) return float_.solve(b, threads);
     return FactorOf<SupernodalLLT>::apply(b);
@@ -341,7 +350,7 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
  protected:
   bool analyze(const Eigen::SparseMatrix<double>& A) override {
     const bool reused = FactorOf<SupernodalLLT>::analyze(A);
-    prepared_ = structured_ = own_ = false;
+    prepared_ = structured_ = own_ = own_single_ = false;
     return reused;
   }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {
@@ -350,6 +359,18 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
       prepared_ = true;
       structured_ = structure_.set(s_.factor());
       own_ = structured_ && numeric_.prepare(structure_, A);
+      own_single_ = own_ && single_factorization_ && single_numeric_.prepare(structure_, A);
+    }
+    if (own_single_) {
+      if (single_numeric_.factorize(A, threads)) {
+        float_.set(structure_, single_numeric_.values().data());
+        have_float_ = true;
+        return true;
+      }
+      // Not positive definite in single precision: too ill-conditioned for a float
+      // preconditioner at all, so CHOLMOD's double factor, applied in double.
+      ++double_fallbacks;
+      return FactorOf<SupernodalLLT>::numeric(A);
     }
     if (own_) {
       if (!numeric_.factorize(A, threads)) return false;
@@ -366,10 +387,12 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
   }
 
  private:
-  bool single_;
+  bool single_, single_factorization_;
   bool have_float_ = false, prepared_ = false, structured_ = false, own_ = false;
+  bool own_single_ = false;
   SupernodalStructure structure_;
-  SupernodalNumeric numeric_;
+  SupernodalNumeric<double> numeric_;
+  SupernodalNumeric<float> single_numeric_;
   FloatSupernodal float_;
 };
 
@@ -440,7 +463,8 @@ StepSolver::StepSolver(const StepSolverOptions& o) : impl_(std::make_unique<Impl
       break;
     case LinearSolver::kCholmodSupernodal:
     case LinearSolver::kReusedFactorPcg:
-      impl_->factor = std::make_unique<SupernodalFactor>(o.single_precision_preconditioner);
+      impl_->factor = std::make_unique<SupernodalFactor>(o.single_precision_preconditioner,
+                                                         o.single_precision_factorization);
       break;
   }
 }
@@ -453,6 +477,7 @@ bool StepSolver::factorize(const System& A, std::string* why) {
   const auto t0 = Clock::now();
   const bool ok = impl_->factor->factorize(A.lower(), &stats_);
   stats_.factorize_s += seconds_since(t0);
+  stats_.double_fallbacks = impl_->factor->double_fallbacks;
   impl_->stale = false;
   impl_->have_factor = ok;
   if (!ok) *why = "linear solver failed (matrix not positive definite)";

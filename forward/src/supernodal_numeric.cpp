@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <type_traits>
 
 #include <cholmod.h>
 #include <dlfcn.h>
@@ -14,25 +15,31 @@ namespace {
 // Debian's libblas.so.3 / liblapack.so.3 alternatives), looked up at run time rather than
 // linked, so that the link cannot pick another BLAS (ATLAS's development links, 2x slower
 // here). gfortran's hidden string lengths are passed explicitly.
-using Dgemm = void (*)(const char*, const char*, const int*, const int*, const int*, const double*,
-                       const double*, const int*, const double*, const int*, const double*, double*,
-                       const int*, std::size_t, std::size_t);
-using Dtrsm = void (*)(const char*, const char*, const char*, const char*, const int*, const int*,
-                       const double*, const double*, const int*, double*, const int*, std::size_t,
-                       std::size_t, std::size_t, std::size_t);
-using Dpotrf = void (*)(const char*, const int*, double*, const int*, int*, std::size_t);
+template <typename T>
 struct Lapack {
-  Dgemm gemm = nullptr;
-  Dtrsm trsm = nullptr;
-  Dpotrf potrf = nullptr;
+  using Gemm = void (*)(const char*, const char*, const int*, const int*, const int*, const T*,
+                        const T*, const int*, const T*, const int*, const T*, T*, const int*,
+                        std::size_t, std::size_t);
+  using Trsm = void (*)(const char*, const char*, const char*, const char*, const int*, const int*,
+                        const T*, const T*, const int*, T*, const int*, std::size_t, std::size_t,
+                        std::size_t, std::size_t);
+  using Potrf = void (*)(const char*, const int*, T*, const int*, int*, std::size_t);
+  Gemm gemm = nullptr;
+  Trsm trsm = nullptr;
+  Potrf potrf = nullptr;
   bool ok() const { return gemm && trsm && potrf; }
 };
-const Lapack& lapack() {
-  static const Lapack l = [] {
-    Lapack r;
-    r.gemm = reinterpret_cast<Dgemm>(dlsym(RTLD_DEFAULT, "dgemm_"));
-    r.trsm = reinterpret_cast<Dtrsm>(dlsym(RTLD_DEFAULT, "dtrsm_"));
-    r.potrf = reinterpret_cast<Dpotrf>(dlsym(RTLD_DEFAULT, "dpotrf_"));
+template <typename T>
+const Lapack<T>& lapack() {
+  static const Lapack<T> l = [] {
+    constexpr bool single = std::is_same_v<T, float>;
+    Lapack<T> r;
+    r.gemm = reinterpret_cast<typename Lapack<T>::Gemm>(
+        dlsym(RTLD_DEFAULT, single ? "sgemm_" : "dgemm_"));
+    r.trsm = reinterpret_cast<typename Lapack<T>::Trsm>(
+        dlsym(RTLD_DEFAULT, single ? "strsm_" : "dtrsm_"));
+    r.potrf = reinterpret_cast<typename Lapack<T>::Potrf>(
+        dlsym(RTLD_DEFAULT, single ? "spotrf_" : "dpotrf_"));
     return r;
   }();
   return l;
@@ -130,10 +137,11 @@ bool SupernodalStructure::set(const cholmod_factor_struct* L) {
   return true;
 }
 
-bool SupernodalNumeric::prepare(const SupernodalStructure& st,
-                                const Eigen::SparseMatrix<double>& A) {
+template <typename Scalar>
+bool SupernodalNumeric<Scalar>::prepare(const SupernodalStructure& st,
+                                        const Eigen::SparseMatrix<double>& A) {
   st_ = nullptr;
-  if (!lapack().ok()) return false;
+  if (!lapack<Scalar>().ok()) return false;
   const int n = st.n, ns = st.num_supernodes();
   if (A.rows() != n || A.cols() != n || !A.isCompressed()) return false;
   for (int k = 0; k < ns; ++k) {  // each supernode's rows ascending
@@ -160,19 +168,20 @@ bool SupernodalNumeric::prepare(const SupernodalStructure& st,
                                       static_cast<size_t>(at - first);
     }
   }
-  x_.assign(st.xsize, 0.0);
+  x_.assign(st.xsize, Scalar(0));
   next_.assign(ns, 0);
   for (auto& p : pending_) p.assign(ns, {});
   st_ = &st;
   return true;
 }
 
-bool SupernodalNumeric::factorize(const Eigen::SparseMatrix<double>& A, int threads) {
+template <typename Scalar>
+bool SupernodalNumeric<Scalar>::factorize(const Eigen::SparseMatrix<double>& A, int threads) {
   if (!st_ || static_cast<size_t>(A.nonZeros()) != dest_.size()) return false;
   const SupernodalStructure& st = *st_;
-  std::fill(x_.begin(), x_.end(), 0.0);
+  std::fill(x_.begin(), x_.end(), Scalar(0));
   const double* a = A.valuePtr();
-  for (size_t k = 0; k < dest_.size(); ++k) x_[dest_[k]] += a[k];
+  for (size_t k = 0; k < dest_.size(); ++k) x_[dest_[k]] += static_cast<Scalar>(a[k]);
   for (auto& p : pending_)
     for (auto& list : p) list.clear();
   bool ok[3] = {true, true, true};
@@ -197,30 +206,31 @@ bool SupernodalNumeric::factorize(const Eigen::SparseMatrix<double>& A, int thre
 // (potrf on its diagonal block, trsm below it), and is queued at the supernode of its first
 // row below its own columns. `context` is the part running (0, 1: a group; 2: the top): a part
 // queues only in its own lists, which the top reads in the order 0, 1, 2.
-bool SupernodalNumeric::factorize_supernode(int j, int context, std::vector<int>* map) {
+template <typename Scalar>
+bool SupernodalNumeric<Scalar>::factorize_supernode(int j, int context, std::vector<int>* map) {
   const SupernodalStructure& st = *st_;
-  thread_local std::vector<double> C;
+  thread_local std::vector<Scalar> C;
   const int k1 = st.super[j], k2 = st.super[j + 1], nc = k2 - k1, nr = st.pi[j + 1] - st.pi[j];
-  double* Lj = x_.data() + st.px[j];
+  Scalar* Lj = x_.data() + st.px[j];
   const int* Rj = st.s.data() + st.pi[j];
   for (int i = 0; i < nr; ++i) (*map)[Rj[i]] = i;
-  const double one = 1.0, zero = 0.0;
+  const Scalar one = 1, zero = 0;
   for (int g = 0; g < 3; ++g) {
     if (g != context && context != 2) continue;  // a group's supernode hears its own group only
     for (int d : pending_[g][j]) {
       const int ndcol = st.super[d + 1] - st.super[d], ndrow = st.pi[d + 1] - st.pi[d];
       const int* Rd = st.s.data() + st.pi[d];
-      const double* Ld = x_.data() + st.px[d];
+      const Scalar* Ld = x_.data() + st.px[d];
       const int p1 = next_[d];
       int p2 = p1;
       while (p2 < ndrow && Rd[p2] < k2) ++p2;
       const int m1 = p2 - p1, m2 = ndrow - p1;
       C.resize(static_cast<size_t>(m2) * m1);
-      lapack().gemm("N", "T", &m2, &m1, &ndcol, &one, Ld + p1, &ndrow, Ld + p1, &ndrow, &zero,
-                    C.data(), &m2, 1, 1);
+      lapack<Scalar>().gemm("N", "T", &m2, &m1, &ndcol, &one, Ld + p1, &ndrow, Ld + p1, &ndrow,
+                            &zero, C.data(), &m2, 1, 1);
       for (int c = 0; c < m1; ++c) {
-        double* col = Lj + static_cast<size_t>(Rd[p1 + c] - k1) * nr;
-        const double* cc = C.data() + static_cast<size_t>(c) * m2;
+        Scalar* col = Lj + static_cast<size_t>(Rd[p1 + c] - k1) * nr;
+        const Scalar* cc = C.data() + static_cast<size_t>(c) * m2;
         for (int r = c; r < m2; ++r) col[(*map)[Rd[p1 + r]]] -= cc[r];
       }
       if (p2 < ndrow) {
@@ -230,15 +240,18 @@ bool SupernodalNumeric::factorize_supernode(int j, int context, std::vector<int>
     }
   }
   int info = 0;
-  lapack().potrf("L", &nc, Lj, &nr, &info, 1);
+  lapack<Scalar>().potrf("L", &nc, Lj, &nr, &info, 1);
   if (info != 0) return false;
   if (nr > nc) {
     const int m = nr - nc;
-    lapack().trsm("R", "L", "T", "N", &m, &nc, &one, Lj, &nr, Lj + nc, &nr, 1, 1, 1, 1);
+    lapack<Scalar>().trsm("R", "L", "T", "N", &m, &nc, &one, Lj, &nr, Lj + nc, &nr, 1, 1, 1, 1);
     next_[j] = nc;
     pending_[context][st.super_of[Rj[nc]]].push_back(j);
   }
   return true;
 }
+
+template class SupernodalNumeric<double>;
+template class SupernodalNumeric<float>;
 
 }  // namespace mvtwin::forward

@@ -36,27 +36,35 @@ struct SupernodalStructure {
 /// each supernode's block) on a SupernodalStructure, the two groups at once when threads > 1.
 /// Every supernode receives its descendants' updates in an order fixed by the structure alone
 /// (a top supernode: group 0's, then group 1's, then the top's), so the factor is the same bit
-/// for bit on one thread or two.
+/// for bit on one thread or two. Scalar is double (dgemm, dpotrf, dtrsm) or float (sgemm,
+/// spotrf, strsm: the single-precision preconditioner factorized in single precision, half the
+/// memory traffic and twice the SIMD width of double's; docs/forward-status.md).
+template <typename Scalar>
 class SupernodalNumeric {
  public:
   /// Prepares for matrices with A's pattern (the lower triangle, column major, that the
-  /// structure was analysed for). False if an entry of A falls outside the structure.
+  /// structure was analysed for). False if an entry of A falls outside the structure or the
+  /// process has no BLAS/LAPACK for Scalar.
   bool prepare(const SupernodalStructure& structure, const Eigen::SparseMatrix<double>& A);
-  /// Factorizes A (the prepared pattern). False if A is not positive definite.
+  /// Factorizes A (the prepared pattern). False if A is not positive definite (in Scalar's
+  /// precision).
   bool factorize(const Eigen::SparseMatrix<double>& A, int threads);
   /// The factor's values, laid out as the structure says.
-  const std::vector<double>& values() const { return x_; }
+  const std::vector<Scalar>& values() const { return x_; }
 
  private:
   bool factorize_supernode(int j, int source_group, std::vector<int>* map);
 
   const SupernodalStructure* st_ = nullptr;
   std::vector<size_t> dest_;  // per entry of A: its place in x_
-  std::vector<double> x_;
+  std::vector<Scalar> x_;
   // Left-looking: the supernodes whose next rows to update fall in supernode j, by the group
   // that finished them (0, 1, top = 2): pending_[g][j].
   std::vector<std::vector<int>> pending_[3];
   std::vector<int> next_;  // per supernode: position of its next row to send updates to
 };
+
+extern template class SupernodalNumeric<double>;
+extern template class SupernodalNumeric<float>;
 
 }  // namespace mvtwin::forward

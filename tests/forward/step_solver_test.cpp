@@ -113,6 +113,64 @@ TEST(StepSolver, SinglePrecisionPreconditionerReachesTheTolerance) {
   EXPECT_EQ(dbl.stats().pcg_iterations, 0);     // the double factor solves it outright
 }
 
+// The single-precision preconditioner factorized in single precision (sgemm, spotrf) instead of
+// rounded from a double factorization: a few more CG iterations at most, the same solution to the
+// tolerance, no fallback on a well-conditioned matrix.
+TEST(StepSolver, SinglePrecisionFactorizationReachesTheTolerance) {
+  Rng rng(9);
+  Eigen::VectorXd b(2500);
+  for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
+  const Eigen::SparseMatrix<double> A = laplacian(50, 0.05);
+  StepSolverOptions o;
+  o.kind = LinearSolver::kCholmodSupernodal;
+  o.pcg_tolerance = 1e-10;
+  Eigen::VectorXd x[2];
+  int iterations[2];
+  for (bool single : {false, true}) {
+    o.single_precision_factorization = single;
+    StepSolver s(o);
+    std::string why;
+    ASSERT_TRUE(s.solve(A, b, &x[single], &why)) << why;
+    EXPECT_LT((A * x[single] - b).norm(), 1e-10 * b.norm());
+    EXPECT_EQ(s.stats().double_fallbacks, 0);
+    iterations[single] = s.stats().pcg_iterations;
+  }
+  EXPECT_LT((x[1] - x[0]).norm(), 1e-8 * x[0].norm());
+  EXPECT_LE(iterations[1], iterations[0] + 2);
+  EXPECT_NE(x[0], x[1]);  // a different factor: not the rounded double one
+}
+
+// A matrix positive definite in double but not in single precision (2 x 2 blocks [1, 1 - d;
+// 1 - d, 1] with d = 2e-8: in float 1 - d rounds to 1 and the block is singular): the
+// single-precision factorization fails, is redone and applied in double (a float preconditioner
+// of such a matrix would not reach the tolerance) and counted, and the solve reaches the
+// tolerance.
+TEST(StepSolver, SinglePrecisionFactorizationFallsBackToDouble) {
+  const int blocks = 200;
+  const double d = 2e-8;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int k = 0; k < blocks; ++k) {
+    t.emplace_back(2 * k, 2 * k, 1.0);
+    t.emplace_back(2 * k + 1, 2 * k + 1, 1.0);
+    t.emplace_back(2 * k, 2 * k + 1, 1.0 - d);
+    t.emplace_back(2 * k + 1, 2 * k, 1.0 - d);
+  }
+  Eigen::SparseMatrix<double> A(2 * blocks, 2 * blocks);
+  A.setFromTriplets(t.begin(), t.end());
+  Rng rng(4);
+  Eigen::VectorXd b(2 * blocks);
+  for (int i = 0; i < b.size(); ++i) b[i] = rng.normal();
+  StepSolverOptions o;
+  o.kind = LinearSolver::kCholmodSupernodal;
+  o.pcg_tolerance = 1e-6;
+  StepSolver s(o);
+  Eigen::VectorXd x;
+  std::string why;
+  ASSERT_TRUE(s.solve(A, b, &x, &why)) << why;
+  EXPECT_LT((A * x - b).norm(), 1e-6 * b.norm());
+  EXPECT_EQ(s.stats().double_fallbacks, 1);
+}
+
 // The single-precision substitutions run in two parts (subtrees of the elimination tree) and
 // the rest; with threads = 2 at once. The solution is the same to the last bit either way, and
 // the split factor is still the factor: a few CG iterations to 1e-10, as in one piece.

@@ -35,9 +35,8 @@ struct ClosureOptions {
   /// steps grow from dt up to max_dt while the local error estimate of a step stays below this
   /// (mm), and return to dt at impacts. Recorded states still fall every record_every x dt.
   /// Off by default: at 0.1 mm the paper's grid takes 51 steps instead of 151 and ends 0.03 mm
-  /// from the fixed-step closure, but the discrete step choices make the calibration's
-  /// objective rougher (a rest length recovered at 0.949 instead of >= 0.97 in
-  /// tests/inverse/calibration_test.cpp): docs/forward-status.md.
+  /// from the fixed-step closure, but 0.19 mm from the converged reference, at the 0.2 mm the
+  /// speed-ups may cost (docs/forward-status.md).
   double step_error_mm = 0.0;
   double max_dt = 0.08;   ///< the largest error-controlled step, s (dt if dt is larger)
   double stretch = 10.0;  ///< simulated closure = stretch x observed closure duration
@@ -132,8 +131,10 @@ struct ClosureSummary {
   /// Solves given earlier steps' updates as guesses (warm_start), and of those the ones the
   /// guesses answered alone (no factorization, no preconditioner application).
   int warm_starts = 0, warm_accepted = 0;
-  int orderings_reused = 0;      ///< analyses that reused an ordering found earlier in the process
-  int pcg_fallbacks = 0;         ///< PCG solves that gave up and factorized
+  int orderings_reused = 0;  ///< analyses that reused an ordering found earlier in the process
+  int pcg_fallbacks = 0;     ///< PCG solves that gave up and factorized
+  /// Single-precision factorizations redone in double (not positive definite in single).
+  int double_fallbacks = 0;
   int unconverged_solves = 0;    ///< solves left above pcg_tolerance after a fresh factorization
   double factorize_s = 0;        ///< part of solve_s spent in factorizations
   double precondition_s = 0;     ///< part of solve_s spent applying the factorization

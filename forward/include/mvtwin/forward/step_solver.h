@@ -38,6 +38,11 @@ struct StepSolverOptions {
   /// copy (half the memory traffic of the memory-bound triangular solves; CG on the exact
   /// double-precision operator still reaches any tolerance).
   bool single_precision_preconditioner = true;
+  /// With the single-precision preconditioner: factorize in single precision too (sgemm,
+  /// spotrf), half the traffic and twice the SIMD width of the double factorization that was
+  /// rounded to single afterwards. A matrix that is not positive definite in single precision
+  /// is factorized and applied in double instead (Stats::double_fallbacks).
+  bool single_precision_factorization = true;
   /// Use System::rotate when the system has one (rotated preconditioner, see System).
   bool rotated_preconditioner = true;
   /// Use the system's guesses (System::guesses): with earlier steps' updates, a step whose
@@ -73,6 +78,9 @@ class StepSolver {
     int warm_starts = 0;    ///< solves given usable guesses (System::guesses)
     int warm_accepted = 0;  ///< of those, solves the guesses answered alone (no application)
     int unconverged = 0;    ///< solves that kept CG's last iterate after a fresh factorization
+    /// Single-precision factorizations that failed (not positive definite in single precision)
+    /// and were done again in double.
+    int double_fallbacks = 0;
     double factorize_s = 0, apply_s = 0;  ///< time in factorizations and in factor solves
     double analyze_s = 0;  ///< part of factorize_s spent in symbolic analyses (orderings)
     /// Analyses that reused the ordering of an earlier solver in the process (same pattern).
