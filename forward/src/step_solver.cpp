@@ -110,7 +110,9 @@ class Factor {
     }
     ++st->factorizations;
     serial_openmp();
-    return numeric(A);
+    const bool ok = numeric(A);
+    st->double_fallbacks = double_fallbacks;
+    return ok;
   }
   virtual Eigen::VectorXd apply(const Eigen::VectorXd& b) const = 0;
   /// Threads of the supernodal single-precision factorization and substitutions (1 or 2).
@@ -336,8 +338,10 @@ class FactorOf : public Factor {
 
 /// CHOLMOD supernodal, optionally applied as a preconditioner in single precision. With the
 /// single-precision preconditioner the numeric factorization is SupernodalNumeric's (its two
-/// groups at once with two threads) on CHOLMOD's symbolic analysis; CHOLMOD's own otherwise,
-/// or should the structure not hold the matrix.
+/// groups at once with two threads) on CHOLMOD's symbolic analysis, in single precision with
+/// single_precision_factorization (CHOLMOD's, applied in double, for a matrix that is not
+/// positive definite in single precision); CHOLMOD's own otherwise, or should the structure not
+/// hold the matrix.
 class SupernodalFactor : public FactorOf<SupernodalLLT> {
  public:
   SupernodalFactor(bool single, bool single_factorization)
@@ -350,7 +354,7 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
  protected:
   bool analyze(const Eigen::SparseMatrix<double>& A) override {
     const bool reused = FactorOf<SupernodalLLT>::analyze(A);
-    prepared_ = structured_ = own_ = own_single_ = false;
+    prepared_ = structured_ = own_ = false;
     return reused;
   }
   bool numeric(const Eigen::SparseMatrix<double>& A) override {
@@ -358,10 +362,11 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
     if (single_ && !prepared_) {  // once per analysis: the structure, and whether ours fits
       prepared_ = true;
       structured_ = structure_.set(s_.factor());
-      own_ = structured_ && numeric_.prepare(structure_, A);
-      own_single_ = own_ && single_factorization_ && single_numeric_.prepare(structure_, A);
+      // Only the numeric factorization in use is prepared (each holds a whole factor).
+      own_ = structured_ && (single_factorization_ ? single_numeric_.prepare(structure_, A)
+                                                   : numeric_.prepare(structure_, A));
     }
-    if (own_single_) {
+    if (own_ && single_factorization_) {
       if (single_numeric_.factorize(A, threads)) {
         float_.set(structure_, single_numeric_.values().data());
         have_float_ = true;
@@ -389,7 +394,6 @@ class SupernodalFactor : public FactorOf<SupernodalLLT> {
  private:
   bool single_, single_factorization_;
   bool have_float_ = false, prepared_ = false, structured_ = false, own_ = false;
-  bool own_single_ = false;
   SupernodalStructure structure_;
   SupernodalNumeric<double> numeric_;
   SupernodalNumeric<float> single_numeric_;
@@ -477,7 +481,6 @@ bool StepSolver::factorize(const System& A, std::string* why) {
   const auto t0 = Clock::now();
   const bool ok = impl_->factor->factorize(A.lower(), &stats_);
   stats_.factorize_s += seconds_since(t0);
-  stats_.double_fallbacks = impl_->factor->double_fallbacks;
   impl_->stale = false;
   impl_->have_factor = ok;
   if (!ok) *why = "linear solver failed (matrix not positive definite)";
