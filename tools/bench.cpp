@@ -145,11 +145,17 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
 
 }  // namespace
 
+std::vector<std::string> reference_settings(const std::vector<std::string>& ref_sets) {
+  std::vector<std::string> all = kReferenceSettings;
+  all.insert(all.end(), ref_sets.begin(), ref_sets.end());
+  return all;
+}
+
 int run_bench_closure(const BenchClosureArgs& a) {
   if (a.repeat < 1) throw Error("bench closure: --repeat must be >= 1");
   const Patient p = make_virtual_patient(a.seed);
   const forward::ClosureOptions o = with_settings({}, a.sets);
-  const forward::ClosureOptions ro = with_settings({}, a.ref_sets);
+  const forward::ClosureOptions ro = with_settings({}, reference_settings(a.ref_sets));
   std::vector<double> walls;
   Run best;
   for (int k = 0; k < a.repeat; ++k) {
@@ -174,7 +180,7 @@ int run_bench_closure(const BenchClosureArgs& a) {
   j["error_sd_mm"] = e.sd;
   j["error_p95_mm"] = e.p95;
   j["error_max_mm"] = e.max;
-  j["reference_settings"] = a.ref_sets;
+  j["reference_settings"] = reference_settings(a.ref_sets);
   j["settings"] = forward::describe_options(o);
   j["patient_seed"] = a.seed;
   j["synthetic"] = true;
@@ -220,8 +226,8 @@ int run_bench_closure(const BenchClosureArgs& a) {
 
 int run_bench_solvers(const BenchSolversArgs& a) {
   const Patient p = make_virtual_patient(a.seed);
-  const LeafletGrid ref =
-      reference_surface(p, with_settings({}, a.ref_sets), a.ref_file, a.command_line);
+  const LeafletGrid ref = reference_surface(p, with_settings({}, reference_settings(a.ref_sets)),
+                                            a.ref_file, a.command_line);
   const std::vector<std::vector<std::string>> variants = {
       {"solver=cholmod-supernodal"},
       {"solver=cholmod-simplicial"},
@@ -262,7 +268,7 @@ int run_bench_solvers(const BenchSolversArgs& a) {
   json j{{"runs", rows},
          {"patient_seed", a.seed},
          {"synthetic", true},
-         {"reference_settings", a.ref_sets},
+         {"reference_settings", reference_settings(a.ref_sets)},
          {"provenance", provenance(a.command_line)}};
   write_json(a.json_path, j);
   return kExitOk;
@@ -294,7 +300,8 @@ void register_bench(CLI::App& app, Context& ctx) {
     auto a = std::make_shared<BenchClosureArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for the timed run (repeatable)");
-    cmd->add_option("--ref-set", a->ref_sets, "name=value for the reference run")
+    cmd->add_option("--ref-set", a->ref_sets,
+                    "name=value for the reference run, over its defaults (repeatable)")
         ->default_str(join(kReferenceSettings));
     cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
     cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);
@@ -321,7 +328,8 @@ void register_bench(CLI::App& app, Context& ctx) {
     auto a = std::make_shared<BenchSolversArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for every run (repeatable)");
-    cmd->add_option("--ref-set", a->ref_sets, "name=value for the reference run")
+    cmd->add_option("--ref-set", a->ref_sets,
+                    "name=value for the reference run, over its defaults (repeatable)")
         ->default_str(join(kReferenceSettings));
     cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
     cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);

@@ -62,7 +62,9 @@ void register_simulate(CLI::App& app, Context& ctx) {
   cmd->add_flag("--force", a->force, "replace an existing result file");
   cmd->add_option("--vtk", a->vtk, "directory for the ParaView series");
   add_grid_options(cmd, a->options.model.ures, a->options.model.vres);
-  cmd->add_option("--dt", a->options.dt, "time step, s")->default_val(0.01);
+  cmd->add_option("--dt", a->options.dt,
+                  "time step, s (with error-controlled steps, the default: the smallest)")
+      ->default_val(0.01);
   cmd->add_option("--newton", a->newton, "Newton iterations per step (1 = one linearization)")
       ->default_val(1);
   cmd->add_option("--solver", a->solver,

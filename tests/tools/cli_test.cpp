@@ -465,8 +465,8 @@ TEST_F(Cli, BenchClosureMeasuresTheLagBehindRest) {
   GTEST_SKIP() << "three closures: too long under AddressSanitizer";
 #endif
   const std::string small =
-      " --set ures=12 --set vres=6 --ref-set ures=12 --ref-set vres=6 "
-      "--ref-set dt=0.01 --ref-set step_error_mm=0 --repeat 1 --json ";
+      " --set ures=12 --set vres=6 --set step_error_mm=0 --ref-set ures=12 --ref-set vres=6 "
+      "--ref-set dt=0.01 --ref-set pcg_tolerance=0.1 --repeat 1 --json ";
   CmdResult r = run("bench closure" + small + path("rest.json"));
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   std::ifstream in(path("rest.json"));
