@@ -204,7 +204,7 @@ int count_inside_other_leaflet(const ValveModel& m, const Eigen::VectorXd& posit
 }
 
 // The Done-when of issue 3: the default patient closes with the locking-free element at
-// nu = 0.488 and the default scheme (one linearization per step, dt = 0.01 s): the orifice
+// nu = 0.488 and the default scheme (one linearization per step, steps of 0.01-0.02 s): the orifice
 // shrinks from an open valve to almost nothing, the leaflets touch, and no surface node of one
 // leaflet ends inside the other (the contact law's wall, SelfContact).
 TEST(ClosureSimulation, DefaultPatientClosesWithoutInterpenetration) {
@@ -355,8 +355,8 @@ TEST(ClosureSimulation, ErrorControlledStepsEndNearThePapersFixedSteps) {
 // smaller than the paper's (the time-discretization error) on virtual patient 4, whose closure
 // at fixed steps of 2 dt strays most (20 x 10 grid): the default keeps to the small-step closure
 // nearly as well as the paper's fixed dt, with far fewer steps, where fixed steps of 2 dt do
-// not. Measured: fixed dt 0.01 mm mean (max 0.12), default 0.02 (0.35) in 129 steps instead of
-// 234, fixed 2 dt 0.09 (1.29).
+// not. Measured: fixed dt 0.010 mm mean (max 0.12), default 0.011 (0.08) in 129 steps instead
+// of 234, fixed 2 dt 0.091 (1.29).
 TEST(ClosureSimulation, DefaultStepsKeepTheTimeErrorNearThePapersStep) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "four closures take minutes under AddressSanitizer; run in the -Werror build";
