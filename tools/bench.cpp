@@ -143,19 +143,22 @@ LeafletGrid reference_surface(const Patient& p, const forward::ClosureOptions& r
   return r.samples.back().la_surface;
 }
 
-}  // namespace
-
+/// The reference run's settings: kReferenceSettings, then the user's --ref-set on top (a
+/// reference keeps fixed steps unless --ref-set says otherwise).
 std::vector<std::string> reference_settings(const std::vector<std::string>& ref_sets) {
   std::vector<std::string> all = kReferenceSettings;
   all.insert(all.end(), ref_sets.begin(), ref_sets.end());
   return all;
 }
 
+}  // namespace
+
 int run_bench_closure(const BenchClosureArgs& a) {
   if (a.repeat < 1) throw Error("bench closure: --repeat must be >= 1");
   const Patient p = make_virtual_patient(a.seed);
   const forward::ClosureOptions o = with_settings({}, a.sets);
-  const forward::ClosureOptions ro = with_settings({}, reference_settings(a.ref_sets));
+  const std::vector<std::string> ref_sets = reference_settings(a.ref_sets);
+  const forward::ClosureOptions ro = with_settings({}, ref_sets);
   std::vector<double> walls;
   Run best;
   for (int k = 0; k < a.repeat; ++k) {
@@ -180,7 +183,7 @@ int run_bench_closure(const BenchClosureArgs& a) {
   j["error_sd_mm"] = e.sd;
   j["error_p95_mm"] = e.p95;
   j["error_max_mm"] = e.max;
-  j["reference_settings"] = reference_settings(a.ref_sets);
+  j["reference_settings"] = ref_sets;
   j["settings"] = forward::describe_options(o);
   j["patient_seed"] = a.seed;
   j["synthetic"] = true;
@@ -226,8 +229,9 @@ int run_bench_closure(const BenchClosureArgs& a) {
 
 int run_bench_solvers(const BenchSolversArgs& a) {
   const Patient p = make_virtual_patient(a.seed);
-  const LeafletGrid ref = reference_surface(p, with_settings({}, reference_settings(a.ref_sets)),
-                                            a.ref_file, a.command_line);
+  const std::vector<std::string> ref_sets = reference_settings(a.ref_sets);
+  const LeafletGrid ref =
+      reference_surface(p, with_settings({}, ref_sets), a.ref_file, a.command_line);
   const std::vector<std::vector<std::string>> variants = {
       {"solver=cholmod-supernodal"},
       {"solver=cholmod-simplicial"},
@@ -268,7 +272,7 @@ int run_bench_solvers(const BenchSolversArgs& a) {
   json j{{"runs", rows},
          {"patient_seed", a.seed},
          {"synthetic", true},
-         {"reference_settings", reference_settings(a.ref_sets)},
+         {"reference_settings", ref_sets},
          {"provenance", provenance(a.command_line)}};
   write_json(a.json_path, j);
   return kExitOk;

@@ -18,7 +18,7 @@ struct BenchClosureArgs : CommandArgs {
   std::string json_path;
   std::string ref_file;
   std::vector<std::string> sets;
-  std::vector<std::string> ref_sets;  ///< over kReferenceSettings (reference_settings())
+  std::vector<std::string> ref_sets;  ///< applied over kReferenceSettings
   unsigned seed = 1;
   int repeat = 3;
   /// Also simulate the timed run's settings with settling (kRestSettings) and report how far
@@ -30,17 +30,13 @@ struct BenchClosureArgs : CommandArgs {
 inline const std::vector<std::string> kRestSettings = {"settle_mm=0.002", "settle_max_dt=0.08",
                                                        "settle_max_s=5"};
 
-/// The reference run's settings: kReferenceSettings, then the user's --ref-set on top (a
-/// reference keeps fixed steps unless --ref-set says otherwise).
-std::vector<std::string> reference_settings(const std::vector<std::string>& ref_sets);
-
 int run_bench_closure(const BenchClosureArgs& args);
 
 struct BenchSolversArgs : CommandArgs {
   std::string json_path;
   std::string ref_file;
   std::vector<std::string> sets;
-  std::vector<std::string> ref_sets;  ///< over kReferenceSettings (reference_settings())
+  std::vector<std::string> ref_sets;  ///< applied over kReferenceSettings
   unsigned seed = 1;
 };
 
