@@ -17,6 +17,15 @@
 namespace mvtwin::forward {
 namespace {
 
+/// Squared distance between two points of the unrolled plane, periodic in x with `period`
+/// (0: not periodic).
+double plane_distance2(const Eigen::Vector2d& p, const Eigen::Vector2d& q, double period) {
+  double dx = q.x() - p.x();
+  if (period > 0 && std::abs(dx) > 0.5 * period) dx -= period * std::round(dx / period);
+  const double dy = q.y() - p.y();
+  return dx * dx + dy * dy;
+}
+
 /// Barycentric weights of a point q lying on the triangle (a, b, c).
 Eigen::Vector3d barycentric(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
                             const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
@@ -185,25 +194,41 @@ SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double st
     triangle_outside2_.push_back(outside * outside);
   }
   for (int vp : s_.vertex_plane) vertex_uv_.push_back(s_.plane.row(vp).transpose());
+  // Each group's corners around the mean of its triangles' centres (unrolled next to the first
+  // one's; any centre is correct, a central one makes the test decide more vertices).
+  for (size_t t0 = 0; t0 < s_.triangles.size(); t0 += kSearchGroup) {
+    const size_t t1 = std::min(s_.triangles.size(), t0 + kSearchGroup);
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (size_t t = t0; t < t1; ++t) {
+      Eigen::Vector2d ct = triangle_centre_[t];
+      if (s_.period > 0)
+        ct.x() -= s_.period * std::round((ct.x() - triangle_centre_[t0].x()) / s_.period);
+      centre += ct / static_cast<double>(t1 - t0);
+    }
+    double radius2 = 0.0;
+    for (size_t t = t0; t < t1; ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector2d corner = s_.plane.row(s_.triangle_plane[t][k]).transpose();
+        radius2 = std::max(radius2, plane_distance2(centre, corner, s_.period));
+      }
+    }
+    const double inside = opt_.exclusion_mm - std::sqrt(radius2) - 1e-9 * (1.0 + opt_.exclusion_mm);
+    group_centre_.push_back(centre);
+    group_inside2_.push_back(inside > 0 ? inside * inside : -1.0);
+  }
 }
 
 bool SelfContact::excluded(int i, int t) const {
   const Eigen::Vector2d& pv = vertex_uv_[i];
-  auto plane_distance2 = [&](const Eigen::Vector2d& q) {
-    double dx = q.x() - pv.x();
-    if (s_.period > 0 && std::abs(dx) > 0.5 * s_.period)
-      dx -= s_.period * std::round(dx / s_.period);
-    const double dy = q.y() - pv.y();
-    return dx * dx + dy * dy;
-  };
   // The corners lie within the radius of the centre (distances on the unrolled cylinder obey
   // the triangle inequality): most pairs are decided here, the rest corner by corner.
-  const double centre2 = plane_distance2(triangle_centre_[t]);
+  const double centre2 = plane_distance2(pv, triangle_centre_[t], s_.period);
   if (centre2 < triangle_inside2_[t]) return true;
   if (centre2 > triangle_outside2_[t]) return false;
   const double limit2 = opt_.exclusion_mm * opt_.exclusion_mm;
   for (int k = 0; k < 3; ++k) {
-    if (plane_distance2(s_.plane.row(s_.triangle_plane[t][k]).transpose()) < limit2) return true;
+    const Eigen::Vector2d corner = s_.plane.row(s_.triangle_plane[t][k]).transpose();
+    if (plane_distance2(pv, corner, s_.period) < limit2) return true;
   }
   return false;
 }
@@ -216,28 +241,76 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   // grown by `reach`, overlaps.
   const UniformGrid grid(static_cast<int>(s_.vertices.size()), reach,
                          [&](int i) { return Eigen::Vector3d(x.segment<3>(3 * s_.vertices[i])); });
-  // The triangles in two halves (run_both), each with its own list; the sort below makes the
-  // order independent of the split.
-  auto search = [&](size_t t0, size_t t1, std::vector<Candidate>* found) {
-    for (size_t t = t0; t < t1; ++t) {
-      const Eigen::Vector3d a = x.segment<3>(3 * s_.triangles[t][0]),
-                            b = x.segment<3>(3 * s_.triangles[t][1]),
-                            c = x.segment<3>(3 * s_.triangles[t][2]);
-      const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - reach;
-      const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + reach;
-      grid.for_each_near(lo, hi, [&](int i) {
-        const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
-        if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) return;
-        if (excluded(i, static_cast<int>(t))) return;
-        const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
-        if ((p - q).norm() < reach) found->push_back({i, static_cast<int>(t)});
+  // What the loop below reads of each vertex, copied in the grid's slot order: a group's cells
+  // are then read contiguously instead of through two indirections into x.
+  struct Slot {
+    Eigen::Vector3d p;
+    Eigen::Vector2d uv;
+    int vertex;
+  };
+  std::vector<Slot> slots;
+  slots.reserve(grid.items().size());
+  for (int i : grid.items()) slots.push_back({x.segment<3>(3 * s_.vertices[i]), vertex_uv_[i], i});
+  // The triangles in groups of kSearchGroup (a quadratic face's four): one visit of the grid,
+  // one box test and one exclusion test per vertex and group. Most vertices near a triangle are
+  // its neighbours on the leaflet (the other surface of the same leaflet among them), excluded
+  // for the whole group at once; the others are tested triangle by triangle as before.
+  // Spheres before exclusion: a vertex within `reach` of a triangle is within reach of the
+  // sphere around its corners, a tighter test than the box (half its volume), with a slack far
+  // above round-off so that no pair the exact test keeps is dropped.
+  const double slack = 1e-9 * (1.0 + reach);
+  auto search = [&](size_t g0, size_t g1, std::vector<Candidate>* found) {
+    Eigen::Vector3d a[kSearchGroup], b[kSearchGroup], c[kSearchGroup], m[kSearchGroup];
+    double r2[kSearchGroup];
+    for (size_t g = g0; g < g1; ++g) {
+      const size_t t0 = g * kSearchGroup, n = std::min(kSearchGroup, s_.triangles.size() - t0);
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+      Eigen::Vector3d hi = -lo;
+      for (size_t k = 0; k < n; ++k) {
+        const std::array<int, 3>& tri = s_.triangles[t0 + k];
+        a[k] = x.segment<3>(3 * tri[0]);
+        b[k] = x.segment<3>(3 * tri[1]);
+        c[k] = x.segment<3>(3 * tri[2]);
+        lo = lo.cwiseMin(a[k]).cwiseMin(b[k]).cwiseMin(c[k]);
+        hi = hi.cwiseMax(a[k]).cwiseMax(b[k]).cwiseMax(c[k]);
+      }
+      const Eigen::Vector3d gm = 0.5 * (lo + hi);
+      double gr = 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        m[k] = (a[k] + b[k] + c[k]) / 3.0;
+        const double r =
+            std::sqrt(std::max({(a[k] - m[k]).squaredNorm(), (b[k] - m[k]).squaredNorm(),
+                                (c[k] - m[k]).squaredNorm()})) +
+            reach + slack;
+        r2[k] = r * r;
+        gr = std::max(gr, (m[k] - gm).norm() + r);
+      }
+      const double gr2 = gr * gr;
+      lo.array() -= reach;
+      hi.array() += reach;
+      grid.for_each_slots_near(lo, hi, [&](int first, int last) {
+        for (int q = first; q < last; ++q) {
+          const Slot& v = slots[static_cast<size_t>(q)];
+          if ((v.p - gm).squaredNorm() > gr2) continue;
+          if (plane_distance2(v.uv, group_centre_[g], s_.period) < group_inside2_[g]) continue;
+          for (size_t k = 0; k < n; ++k) {
+            const int t = static_cast<int>(t0 + k);
+            // excluded()'s first test inline (it decides most pairs), then excluded() itself.
+            if ((v.p - m[k]).squaredNorm() > r2[k] ||
+                plane_distance2(v.uv, triangle_centre_[t], s_.period) < triangle_inside2_[t] ||
+                excluded(v.vertex, t))
+              continue;
+            const Eigen::Vector3d cp = closest_point_on_triangle(v.p, a[k], b[k], c[k]);
+            if ((v.p - cp).norm() < reach) found->push_back({v.vertex, t});
+          }
+        }
       });
     }
   };
-  const size_t nt = s_.triangles.size();
+  const size_t ng = group_centre_.size();
   std::vector<Candidate> second;
   run_both(
-      threads_, [&] { search(0, nt / 2, &candidates_); }, [&] { search(nt / 2, nt, &second); });
+      threads_, [&] { search(0, ng / 2, &candidates_); }, [&] { search(ng / 2, ng, &second); });
   candidates_.insert(candidates_.end(), second.begin(), second.end());
   // Grouped by vertex (detect() walks each vertex's candidates together), in a fixed order.
   std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& p, const Candidate& q) {
@@ -437,12 +510,20 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
           hi = hi.cwiseMax(x->segment<3>(3 * tri[k]));
         }
       }
+      // A crossing point lies on the vertex's segment and on the triangle, so in both boxes
+      // (grown by more than the crossing test's tolerance, 1e-3 x an edge + 1e-6 mm).
+      const double slack = 1e-2 + 1e-3 * (hi - lo).norm();
+      const Eigen::Vector3d reach_lo = lo.array() - slack, reach_hi = hi.array() + slack;
       // A vertex's segment midpoint is within step_motion / 2 of every point of it.
       lo.array() -= 0.5 * step_motion + 1e-9;
       hi.array() += 0.5 * step_motion + 1e-9;
       grid.for_each_near(lo, hi, [&](int i) {
         const int v = s_.vertices[i];
         if (*first >= 0 || v == tri[0] || v == tri[1] || v == tri[2]) return;
+        const Eigen::Vector3d p0 = x0.segment<3>(3 * v), p1 = x1.segment<3>(3 * v);
+        if ((p0.cwiseMax(p1).array() < reach_lo.array()).any() ||
+            (p0.cwiseMin(p1).array() > reach_hi.array()).any())
+          return;
         if (!excluded(i, static_cast<int>(t)) && test(i, static_cast<int>(t))) *first = v;
       });
       if (*first >= 0) return;

@@ -60,6 +60,17 @@ class UniformGrid {
   /// cell order and, within a cell, in increasing index.
   template <typename Visit>
   void for_each_near(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Visit visit) const {
+    for_each_slots_near(lo, hi, [&](int first, int last) {
+      for (int q = first; q < last; ++q) visit(items_[static_cast<size_t>(q)]);
+    });
+  }
+
+  /// The same points as for_each_near, as ranges [first, last) of slots: slot q holds point
+  /// items()[q]. A caller that copies what it needs of each point into slot order reads it
+  /// contiguously (the contact search's hot loop).
+  template <typename VisitSlots>
+  void for_each_slots_near(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                           VisitSlots visit) const {
     std::int64_t a[3], b[3];
     for (int k = 0; k < 3; ++k) {
       if (hi[k] < lo_[k] || lo[k] > lo_[k] + static_cast<double>(n_[k]) * h_) return;  // outside
@@ -71,10 +82,13 @@ class UniformGrid {
         const std::int64_t row = (i * n_[1] + j) * n_[2];
         const int first = start_[static_cast<size_t>(row + a[2])];
         const int last = start_[static_cast<size_t>(row + b[2] + 1)];
-        for (int q = first; q < last; ++q) visit(items_[static_cast<size_t>(q)]);
+        if (first < last) visit(first, last);
       }
     }
   }
+
+  /// The points in slot order (by cell, then index).
+  const std::vector<int>& items() const { return items_; }
 
  private:
   std::int64_t clamp_index(int k, double v) const {

@@ -1,6 +1,11 @@
 #include "mvtwin/forward/self_contact.h"
 
+#include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -197,6 +202,138 @@ TEST(SelfContact, CrossingInOneStepIsCaught) {
   Eigen::VectorXd moved = far.x;
   for (int i = 0; i < moved.size(); i += 3) moved[i] += 0.2;
   EXPECT_EQ(c2.find_crossing(far.x, moved), -1);
+}
+
+// A strip of the unrolled plane (u along it, v across; spacing 0.5 mm) folded in 3D into a U:
+// the arms face each other `gap` mm apart, with random bumps of up to 0.08 mm. Vertices of one arm
+// pair with triangles of the other where they are more than the exclusion distance apart along the
+// strip; near the fold they are neighbours and excluded. `period` > 0 makes the plane periodic in u
+// (the strip's two ends neighbours).
+Plates make_fold(double gap, double period, unsigned seed) {
+  const int nu = 41, nv = 9;
+  const double h = 0.5, a = 8.0, R = 0.5 * gap;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> bump(-0.08, 0.08);
+  Plates p;
+  p.x.resize(3 * nu * nv);
+  p.surface.plane.resize(nu * nv, 2);
+  p.surface.period = period;
+  const double pi = std::acos(-1.0);
+  for (int j = 0; j < nv; ++j) {
+    for (int i = 0; i < nu; ++i) {
+      const int id = j * nu + i;
+      const double u = i * h;
+      Eigen::Vector3d q;
+      if (u < a) {
+        q = {u, j * h, 0.0};
+      } else if (u < a + pi * R) {
+        const double t = (u - a) / R;
+        q = {a + R * std::sin(t), j * h, R - R * std::cos(t)};
+      } else {
+        q = {a - (u - a - pi * R), j * h, 2.0 * R};
+      }
+      q.z() += bump(rng);
+      p.x.segment<3>(3 * id) = q;
+      p.surface.plane.row(id) = Eigen::RowVector2d(u, j * h);
+      p.surface.vertices.push_back(id);
+      p.surface.vertex_plane.push_back(id);
+      p.surface.vertex_area.push_back(h * h);
+    }
+  }
+  for (int j = 0; j + 1 < nv; ++j) {
+    for (int i = 0; i + 1 < nu; ++i) {
+      const int a0 = j * nu + i, b = a0 + 1, c = a0 + nu + 1, d = a0 + nu;
+      for (const std::array<int, 3>& t : {std::array<int, 3>{a0, b, c}, {a0, c, d}}) {
+        p.surface.triangles.push_back(t);
+        p.surface.triangle_plane.push_back(t);
+        // (b - a) x (c - a) is +z on the lower arm and -z on the upper one: towards the other
+        // arm on both, the side a vertex comes from.
+        p.surface.triangle_outward.push_back(1);
+      }
+    }
+  }
+  return p;
+}
+
+// The surface with its triangles in another order (each triangle keeps its plane corners and
+// side).
+SelfContact::Surface shuffled(SelfContact::Surface s, unsigned seed) {
+  std::vector<size_t> order(s.triangles.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::shuffle(order.begin(), order.end(), std::mt19937(seed));
+  SelfContact::Surface out = s;
+  for (size_t k = 0; k < order.size(); ++k) {
+    out.triangles[k] = s.triangles[order[k]];
+    out.triangle_plane[k] = s.triangle_plane[order[k]];
+    out.triangle_outward[k] = s.triangle_outward[order[k]];
+  }
+  return out;
+}
+
+// Each contact vertex's closest pairing distance, sorted by vertex: what the pairs must agree
+// on whichever triangle a tie (a vertex over a shared edge) went to.
+std::vector<std::pair<int, double>> vertex_distances(const SelfContact& c) {
+  std::vector<std::pair<int, double>> out;
+  for (const SelfContact::Pair& pr : c.pairs()) out.emplace_back(pr.vertex, pr.distance);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// The full search takes triangles in consecutive groups and decides most vertices per group (a
+// box, a sphere, a plane exclusion test), then per triangle. Whatever the triangles' order (a
+// shuffled surface's groups are scattered, so its group tests decide almost nothing) and however
+// wide the Verlet margin (30 mm: every vertex is a candidate of every triangle it is not
+// excluded from, a brute-force search), the same pairs are found.
+TEST(SelfContact, SearchFindsTheSamePairsWhateverTheTriangleOrderAndMargin) {
+  for (const double period : {0.0, 21.0}) {
+    const Plates p = make_fold(0.5, period, 7);  // within the alarm distance
+    SelfContactOptions wide = options();
+    wide.margin_mm = 30.0;
+    SelfContact grouped(p.surface, options(), kStiffness, kMaxDepth);
+    SelfContact scattered(shuffled(p.surface, 11), options(), kStiffness, kMaxDepth);
+    SelfContact brute(shuffled(p.surface, 13), wide, kStiffness, kMaxDepth);
+    const int n = grouped.detect(p.x);
+    // Both arms' vertices over the other arm beyond the exclusion distance: most of 2 x 9 x 9.
+    EXPECT_GT(n, 100) << "period " << period;
+    EXPECT_EQ(scattered.detect(p.x), n) << "period " << period;
+    EXPECT_EQ(brute.detect(p.x), n) << "period " << period;
+    const auto a = vertex_distances(grouped), b = vertex_distances(scattered),
+               c = vertex_distances(brute);
+    ASSERT_EQ(a.size(), b.size());
+    ASSERT_EQ(a.size(), c.size());
+    for (size_t k = 0; k < a.size(); ++k) {
+      EXPECT_EQ(a[k].first, b[k].first);
+      EXPECT_EQ(a[k].first, c[k].first);
+      EXPECT_NEAR(a[k].second, b[k].second, 1e-12);
+      EXPECT_NEAR(a[k].second, c[k].second, 1e-12);
+    }
+  }
+}
+
+// The Verlet list: arms 1.9 mm apart (beyond the alarm distance, within alarm + margin) move
+// 0.7 mm towards each other, each node by less than margin / 2, so the candidates found before
+// the motion are reused; they must hold every pair a search at the new positions would find.
+TEST(SelfContact, ReusedCandidatesHoldEveryPairThatComesWithinTheAlarm) {
+  const Plates p = make_fold(1.9, 0.0, 5);
+  SelfContactOptions wide = options();
+  wide.margin_mm = 30.0;
+  SelfContact list(p.surface, options(), kStiffness, kMaxDepth);
+  SelfContact brute(p.surface, wide, kStiffness, kMaxDepth);
+  EXPECT_EQ(list.detect(p.x), 0);
+  brute.detect(p.x);
+  Eigen::VectorXd x = p.x;
+  for (int i = 0; i < x.size(); i += 3) x[i + 2] += x[i + 2] > 0.95 ? -0.7 : 0.7;
+  const int n = list.detect(x);
+  EXPECT_EQ(list.reused(), 1);
+  EXPECT_EQ(list.searches(), 1);
+  EXPECT_GT(n, 50);
+  EXPECT_EQ(brute.detect(x), n);
+  const auto a = vertex_distances(list), b = vertex_distances(brute);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].first, b[k].first);
+    EXPECT_NEAR(a[k].second, b[k].second, 1e-12);
+  }
 }
 
 TEST(SelfContact, BadOptions) {

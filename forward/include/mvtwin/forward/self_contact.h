@@ -167,6 +167,12 @@ class SelfContact {
   std::vector<Eigen::Vector2d> triangle_centre_;
   std::vector<double> triangle_inside2_, triangle_outside2_;
   std::vector<Eigen::Vector2d> vertex_uv_;  // each surface vertex in the unrolled plane
+  // The full search takes the triangles in consecutive groups (valve_surface's quadratic faces
+  // are four consecutive triangles). Per group, in the unrolled plane: a centre and the squared
+  // distance from it below which a vertex is excluded from every triangle of the group.
+  static constexpr size_t kSearchGroup = 4;
+  std::vector<Eigen::Vector2d> group_centre_;
+  std::vector<double> group_inside2_;
   struct Candidate {
     int vertex;  // index into the surface's vertices
     int triangle;
