@@ -15,3 +15,16 @@ if(MVTWIN_SANITIZE)
   # libstdc++'s <regex> and Eigen at -O1): still printed, no longer fatal in this flavour.
   target_compile_options(mvtwin_options INTERFACE -Wno-error=maybe-uninitialized)
 endif()
+if(MVTWIN_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    message(FATAL_ERROR "MVTWIN_FUZZ needs clang (scripts/build fuzz chooses it)")
+  endif()
+  # Coverage for libFuzzer in every mvtwin object, AddressSanitizer and UBSan; the harnesses
+  # link libFuzzer's main (tests/fuzz).
+  target_compile_options(mvtwin_options INTERFACE -fsanitize=fuzzer-no-link,address,undefined
+                         -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  target_link_options(mvtwin_options INTERFACE -fsanitize=address,undefined)
+  # clang also flags float -> double in assignments, which GCC's flavours (where the warning
+  # is kept for arithmetic) do not.
+  target_compile_options(mvtwin_options INTERFACE -Wno-double-promotion)
+endif()

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <string>
 
@@ -11,6 +12,7 @@
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "raw_voxels.h"
 
 namespace mvtwin {
 namespace {
@@ -175,14 +177,38 @@ std::vector<ImageVolume> read_nifti_series(const std::filesystem::path& path) {
   geom.origin = offset;
 
   // Skip to the voxel data.
-  const long skip = static_cast<long>(vox_offset) - kHeaderSize;
-  if (skip < 0)
+  if (!(vox_offset >= kHeaderSize && vox_offset < 9.0e18))
     throw Error(name + ": vox_offset " + std::to_string(vox_offset) + " is inside the header");
-  std::vector<unsigned char> ext(static_cast<size_t>(skip));
-  if (skip > 0 && gzread(gz.f, ext.data(), static_cast<unsigned>(skip)) != skip) {
-    throw Error(name + ": truncated before the voxel data");
-  }
+  const auto skip = static_cast<std::uint64_t>(vox_offset) - kHeaderSize;
   const size_t nvox = geom.num_voxels();
+  // What the header claims against what the file can hold (uncompressed: its size; gzip: the
+  // most its bytes can inflate to), before anything of that size is allocated.
+  {
+    const std::uint64_t file_bytes = std::filesystem::file_size(path, ec);
+    const bool compressed = gzdirect(gz.f) == 0;
+    const double claimed = static_cast<double>(kHeaderSize) + static_cast<double>(skip) +
+                           static_cast<double>(nvox) * bytes * nt;
+    const double holds = compressed ? static_cast<double>(raw::max_inflated_size(file_bytes))
+                                    : static_cast<double>(file_bytes);
+    if (ec || claimed > holds) {
+      char text[64];
+      std::snprintf(text, sizeof text, "%.0f", claimed);  // may exceed any integer type
+      const std::string claims =
+          "the header claims " + std::string(text) + " bytes of header and data";
+      throw Error(name + (compressed ? ": " + claims + ", more than " + std::to_string(file_bytes) +
+                                           " gzip-compressed bytes can hold (a corrupt header "
+                                           "or a compression bomb)"
+                                     : ": truncated voxel data (" + claims + ", the file has " +
+                                           std::to_string(file_bytes) + ")"));
+    }
+  }
+  for (std::uint64_t left = skip; left > 0;) {  // extensions: read past, not kept
+    unsigned char discard[65536];
+    const auto chunk = static_cast<unsigned>(std::min<std::uint64_t>(left, sizeof discard));
+    if (gzread(gz.f, discard, chunk) != static_cast<int>(chunk))
+      throw Error(name + ": truncated before the voxel data");
+    left -= chunk;
+  }
   std::vector<ImageVolume> out;
   std::vector<unsigned char> raw(nvox * bytes);
   for (int t = 0; t < nt; ++t) {

@@ -45,9 +45,21 @@ std::string read_file_bytes(const std::filesystem::path& path) {
   return ss.str();
 }
 
+std::size_t max_inflated_size(std::size_t compressed) {
+  constexpr std::size_t kRatio = 1032, kSlack = 1024;
+  if (compressed > (std::numeric_limits<std::size_t>::max() - kSlack) / kRatio)
+    return std::numeric_limits<std::size_t>::max();
+  return kRatio * compressed + kSlack;
+}
+
 std::string inflate(const std::string& in, std::size_t expected, const std::string& what) {
   if (in.size() > std::numeric_limits<uInt>::max() || expected > std::numeric_limits<uInt>::max())
     throw Error(what + ": compressed blocks over 4 GB are not supported");
+  if (expected > max_inflated_size(in.size()))
+    throw Error(what + ": the header claims " + std::to_string(expected) + " bytes from " +
+                std::to_string(in.size()) +
+                " compressed bytes, more than zlib can encode (a corrupt header or a "
+                "compression bomb)");
   std::string out(expected, '\0');
   z_stream z{};
   if (inflateInit2(&z, 15 + 32) != Z_OK) throw Error(what + ": zlib initialization failed");

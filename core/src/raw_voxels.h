@@ -15,8 +15,14 @@ int bytes_of(VoxelType t);
 /// The whole file; throws mvtwin::Error naming it when missing or unreadable.
 std::string read_file_bytes(const std::filesystem::path& path);
 
+/// The most `compressed` bytes of zlib or gzip data can inflate to: deflate encodes at most 1032
+/// bytes per input byte (zlib's technical details), plus a header's worth. A header that claims
+/// more data than this is corrupt or a compression bomb, and is refused before allocating.
+std::size_t max_inflated_size(std::size_t compressed);
+
 /// Inflates zlib or gzip data (detected from its header) that must give exactly `expected`
-/// bytes; throws mvtwin::Error naming `what` for corrupt or short data.
+/// bytes; throws mvtwin::Error naming `what` for corrupt or short data, or when `expected` is
+/// more than the data can inflate to (nothing is allocated then).
 std::string inflate(const std::string& compressed, std::size_t expected, const std::string& what);
 
 /// Deflates to gzip (`gzip` true: NRRD's "gzip" encoding) or zlib (MetaImage) format.

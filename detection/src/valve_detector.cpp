@@ -598,7 +598,7 @@ cv::FileStorage open_model(const std::filesystem::path& path) {
   cv::FileStorage fs;
   try {
     fs.open(what, cv::FileStorage::READ);
-  } catch (const cv::Exception& e) {
+  } catch (const std::exception& e) {  // cv::Exception, std::length_error from the parser
     throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) +
                 ")");
   }
@@ -610,7 +610,12 @@ cv::FileStorage open_model(const std::filesystem::path& path) {
 
 }  // namespace
 
-ValveDetector ValveDetector::load(const std::filesystem::path& path) {
+// OpenCV reports a malformed file or node (a string where numbers are expected, a matrix of
+// the wrong shape, a broken forest) by throwing cv::Exception, or lets std::length_error
+// through, from opening and from any read: found by the fuzzer
+// (tests/fuzz/fuzz_detector_model.cpp). The function-try-block turns them into the error naming
+// the file; mvtwin::Error passes through.
+ValveDetector ValveDetector::load(const std::filesystem::path& path) try {
   const std::string what = path.string();
   cv::FileStorage fs = open_model(path);
   if (static_cast<int>(fs["format_version"]) != 1)
@@ -628,7 +633,10 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
   m.options.track_search_mm = static_cast<double>(on["track_search_mm"]);
   m.options.normal_search_mm = static_cast<double>(on["normal_search_mm"]);
   m.options.surface_iterations = static_cast<int>(on["surface_iterations"]);
-  m.options.seed = static_cast<std::uint64_t>(static_cast<double>(on["seed"]));
+  const double seed = static_cast<double>(on["seed"]);
+  if (!(seed >= 0.0 && seed < 18446744073709551616.0))  // 2^64; NaN fails too
+    throw Error(what + ": bad detector options: the seed is not a whole number >= 0");
+  m.options.seed = static_cast<std::uint64_t>(seed);
   if (const std::string e = m.options.invalid(); !e.empty())
     throw Error(what + ": bad detector options: " + e);
   std::vector<double> shape, offs;
@@ -659,6 +667,11 @@ ValveDetector ValveDetector::load(const std::filesystem::path& path) {
     m.landmarks.push_back(
         forest("landmark_" + std::string(kLandmarkNames[static_cast<std::size_t>(l)])));
   return d;
+} catch (const Error&) {
+  throw;
+} catch (const std::exception& e) {  // cv::Exception, and what OpenCV lets through (length_error)
+  throw Error(path.string() + ": not a readable detector model (" +
+              std::string(e.what()).substr(0, 200) + ")");
 }
 
 std::vector<std::pair<std::string, std::string>> ValveDetector::provenance(

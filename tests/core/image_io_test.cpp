@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -195,6 +196,49 @@ TEST_F(ImageIo, BadFilesGetClearErrorsAndWritesLeaveNothingHalfDone) {
   EXPECT_FALSE(fs::exists(dir_ / "uneven.mha"));
   EXPECT_EQ(fs::file_size(dir_ / "ok.nrrd"), before);
   EXPECT_EQ(read_image_series(dir_ / "ok.nrrd").size(), 3u);
+}
+
+// Found by the fuzzers (tests/fuzz): headers that claim more data than the file holds were
+// allocated before anything checked them (a NIfTI vox_offset of 1e11: 377 GB asked of the
+// allocator; a compressed MetaImage of 900^3 float voxels). Refused now, naming the file, before
+// any large allocation.
+TEST_F(ImageIo, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeAllocating) {
+  write_image_series(dir_ / "one.nii", {series_[0]});
+  std::string nii;
+  {
+    std::ifstream f(dir_ / "one.nii", std::ios::binary);
+    nii.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  const float huge_offset = 1e11f;  // vox_offset, bytes 108-111 (little endian as written)
+  std::string bad = nii;
+  std::memcpy(bad.data() + 108, &huge_offset, 4);
+  write_text(dir_ / "offset.nii", bad);
+  std::string e = error_of(dir_ / "offset.nii");
+  EXPECT_NE(e.find("offset.nii"), std::string::npos) << e;
+  EXPECT_NE(e.find("the header claims"), std::string::npos) << e;
+  bad = nii;
+  const std::int16_t big = 30000;  // dim[1..3], bytes 42-47
+  for (int k = 0; k < 3; ++k) std::memcpy(bad.data() + 42 + 2 * k, &big, 2);
+  write_text(dir_ / "dims.nii", bad);
+  e = error_of(dir_ / "dims.nii");
+  EXPECT_NE(e.find("the header claims"), std::string::npos) << e;
+
+  write_image_series(dir_ / "one.mha", {series_[0]});
+  std::string mha;
+  {
+    std::ifstream f(dir_ / "one.mha", std::ios::binary);
+    mha.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  const size_t at = mha.find("DimSize = ");
+  ASSERT_NE(at, std::string::npos);
+  const size_t eol = mha.find('\n', at);
+  write_text(dir_ / "bomb.mha", mha.substr(0, at) + "DimSize = 900 900 900" + mha.substr(eol));
+  e = error_of(dir_ / "bomb.mha");
+  EXPECT_NE(e.find("bomb.mha"), std::string::npos) << e;
+  EXPECT_NE(e.find("compression bomb"), std::string::npos) << e;
+  // The files as written still read.
+  EXPECT_EQ(read_image_series(dir_ / "one.nii").size(), 1u);
+  EXPECT_EQ(read_image_series(dir_ / "one.mha").size(), 1u);
 }
 
 TEST_F(ImageIo, NrrdSeriesOpensInPythonAsSlicerWould) {

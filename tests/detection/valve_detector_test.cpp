@@ -158,5 +158,35 @@ TEST(ValveDetector, RefusesTooLittleTrainingDataAndBadOptions) {
   EXPECT_THROW(ValveDetector{}.detect(ImageVolume{}), Error);
 }
 
+// Found by the fuzzer (tests/fuzz/fuzz_detector_model.cpp): a model file whose seed is out of
+// range was cast to an integer (undefined behaviour), and OpenCV's exceptions for malformed
+// nodes escaped load() as cv::Exception. Both are mvtwin::Error naming the file now.
+TEST(ValveDetector, MalformedModelFilesGetAnErrorNamingTheFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("mvtwin_det_bad_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string head = "%YAML:1.0\n---\nformat: mvtwin-valve-detector\nformat_version: 1\n";
+  const std::string options =
+      "options:\n   trees: 2\n   max_depth: 4\n   samples_per_volume: 100\n"
+      "   position_step_mm: 2.\n   landmark_search_mm: 6.\n   track_search_mm: 4.\n"
+      "   normal_search_mm: 3.\n   surface_iterations: 2\n";
+  auto error_of = [&](const std::string& name, const std::string& text) {
+    { std::ofstream(dir / name) << text; }
+    try {
+      ValveDetector::load(dir / name);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  std::string e = error_of("seed.yml", head + "scales: [ 4, 2 ]\n" + options + "   seed: 1e308\n");
+  EXPECT_NE(e.find("seed.yml"), std::string::npos) << e;
+  EXPECT_NE(e.find("the seed is not a whole number"), std::string::npos) << e;
+  e = error_of("scales.yml", head + "scales: [ a, b ]\n" + options + "   seed: 1\n");
+  EXPECT_NE(e.find("scales.yml"), std::string::npos) << e;
+  EXPECT_NE(e.find("not a readable detector model"), std::string::npos) << e;
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace mvtwin::detection

@@ -1,0 +1,8 @@
+// The calibration result file (HDF5).
+#include "fuzz_input.h"
+#include "mvtwin/core/calibration_file.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  return mvtwin::fuzz::read_bytes(data, size, ".h5",
+                                  [](const auto& p) { mvtwin::read_calibration_file(p); });
+}
