@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/sample_records.h"
 #include "mvtwin/core/error.h"
 
 namespace mvtwin {
@@ -15,41 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-CalibrationRecord sample() {
-  CalibrationRecord r;
-  r.patient_id = "virtual-3";
-  r.patient_file = "p.h5";
-  r.synthetic = true;
-  r.provenance.command = "test";
-  r.provenance.seed = 3;
-  r.options = {{"ures", "20"}, {"fit_method", "bobyqa"}};
-  r.method = "bobyqa";
-  r.termination = "step tolerance reached";
-  r.names = {"restlength_factor_a", "peak_pressure"};
-  r.units = {"1", "mmHg"};
-  r.lower = Eigen::Vector2d(0.7, 60);
-  r.upper = Eigen::Vector2d(1.6, 200);
-  r.start = Eigen::Vector2d(1.0, 120);
-  r.fitted = Eigen::Vector2d(1.12, 131.5);
-  r.sd = Eigen::Vector2d(0.01, std::nan(""));
-  r.truth = Eigen::Vector2d(1.1, 130);
-  r.identified = {1, 0};
-  r.covariance = Eigen::Matrix2d{{1e-4, 2e-3}, {2e-3, 4.0}};
-  r.correlation = Eigen::Matrix2d{{1, 0.1}, {0.1, 1}};
-  r.noise_mm = 0.5;
-  r.parameters.restlength_factor[0] = 1.12;
-  r.error_before_mm = 1.5;
-  r.error_after_mm = 0.6;
-  r.simulations = 3;
-  r.failed_simulations = 1;
-  r.cache_hits = 2;
-  r.wall_s = 12.5;
-  r.history_simulation = {1, 2, 3};
-  r.history_error_mm = {1.5, std::nan(""), 0.6};
-  r.history_best_mm = {1.5, 1.5, 0.6};
-  r.history_x = Eigen::MatrixXd{{1.0, 120}, {1.3, 150}, {1.12, 131.5}};
-  return r;
-}
+CalibrationRecord sample() { return test_support::sample_calibration_record(); }
 
 fs::path temp(const std::string& name) {
   return fs::temp_directory_path() / ("mvtwin_calib_" + std::to_string(getpid()) + "_" + name);

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/sample_records.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/virtual_patient.h"
@@ -16,41 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-SimulationRecord sample_record() {
-  const Patient p = make_virtual_patient(12);
-  SimulationRecord r;
-  r.patient_id = p.id;
-  r.patient_file = "p.h5";
-  r.synthetic = true;
-  r.provenance.command = "test";
-  r.provenance.seed = 12;
-  r.options = {{"dt", "0.01"}, {"contact", "on"}};
-  r.parameters.peak_pressure_mpa = 0.0123;
-  r.parameters.restlength_factor[2] = 1.234;
-  r.status = "converged";
-  r.summary = {{"steps", 42}, {"wall_s", 1.5}};
-  for (int s = 0; s < 3; ++s) {
-    r.time_s.push_back(0.1 * s);
-    r.observed_time_s.push_back(0.5 + 0.01 * s);
-    r.anterior_tip_mm.push_back(-10 + s);
-    r.posterior_tip_mm.push_back(-8 + s);
-    r.orifice_area_mm2.push_back(200 - 90 * s);
-    r.annulus_area_mm2.push_back(700);
-    r.la_surface.push_back(*p.sequence.frames[s].la_surface);
-  }
-  r.mesh.V.resize(4, 3);
-  r.mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  r.mesh.T.resize(1, 4);
-  r.mesh.T << 0, 1, 2, 3;
-  r.mesh.tag.resize(1);
-  r.mesh.tag << 1;
-  r.mesh.fibre.resize(1, 3);
-  r.mesh.fibre << 1, 0, 0;
-  r.final_positions = r.mesh.V * 1.1;
-  r.element_strain = Eigen::VectorXd::Constant(1, 0.1);
-  r.element_stress_mpa = Eigen::VectorXd::Constant(1, 0.05);
-  return r;
-}
+SimulationRecord sample_record() { return test_support::sample_simulation_record(); }
 
 TEST(SimulationFile, RoundTrip) {
   const fs::path f =

@@ -12,6 +12,7 @@
 
 #include <Eigen/Geometry>
 
+#include "../support/sample_records.h"
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/image_io.h"
@@ -128,63 +129,10 @@ void result_files(const fs::path& dir) {
   p.images = {volume(6, 5, 4, 0.0)};
   write_patient(dir / "fuzz_patient" / "virtual3.h5", p);
 
-  SimulationRecord r;
-  r.patient_id = p.id;
-  r.patient_file = "virtual3.h5";
-  r.synthetic = true;
-  r.provenance.command = "mvtwin_fuzz_seeds";
-  r.provenance.seed = 3;
-  r.options = {{"dt", "0.01"}, {"contact", "on"}};
-  r.status = "converged";
-  r.outcome = "converged";
-  r.summary = {{"steps", 42}, {"wall_s", 1.5}};
-  for (int s = 0; s < 2; ++s) {
-    r.time_s.push_back(0.1 * s);
-    r.observed_time_s.push_back(0.5 + 0.01 * s);
-    r.anterior_tip_mm.push_back(-10 + s);
-    r.posterior_tip_mm.push_back(-8 + s);
-    r.orifice_area_mm2.push_back(200 - 90 * s);
-    r.annulus_area_mm2.push_back(700);
-    r.la_surface.push_back(*p.sequence.frames[static_cast<std::size_t>(s)].la_surface);
-  }
-  r.mesh.V.resize(4, 3);
-  r.mesh.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  r.mesh.T.resize(1, 4);
-  r.mesh.T << 0, 1, 2, 3;
-  r.mesh.tag.resize(1);
-  r.mesh.tag << 1;
-  r.mesh.fibre.resize(1, 3);
-  r.mesh.fibre << 1, 0, 0;
-  r.final_positions = r.mesh.V * 1.1;
-  r.element_strain = Eigen::VectorXd::Constant(1, 0.1);
-  r.element_stress_mpa = Eigen::VectorXd::Constant(1, 0.05);
+  const SimulationRecord r = test_support::sample_simulation_record();
   write_simulation_file(dir / "fuzz_simulation" / "simulation.h5", r);
 
-  CalibrationRecord c;
-  c.patient_id = p.id;
-  c.patient_file = "virtual3.h5";
-  c.synthetic = true;
-  c.provenance.command = "mvtwin_fuzz_seeds";
-  c.options = {{"ures", "20"}, {"fit_method", "bobyqa"}};
-  c.method = "bobyqa";
-  c.termination = "step tolerance reached";
-  c.names = {"restlength_factor_a", "peak_pressure"};
-  c.units = {"1", "mmHg"};
-  c.lower = Eigen::Vector2d(0.7, 60);
-  c.upper = Eigen::Vector2d(1.6, 200);
-  c.start = Eigen::Vector2d(1.0, 120);
-  c.fitted = Eigen::Vector2d(1.12, 131.5);
-  c.sd = Eigen::Vector2d(0.01, std::nan(""));
-  c.truth = Eigen::Vector2d(1.1, 130);
-  c.identified = {1, 0};
-  c.covariance = Eigen::Matrix2d{{1e-4, 2e-3}, {2e-3, 4.0}};
-  c.correlation = Eigen::Matrix2d{{1, 0.1}, {0.1, 1}};
-  c.noise_mm = 0.5;
-  c.simulations = 3;
-  c.history_simulation = {1, 2, 3};
-  c.history_error_mm = {1.5, std::nan(""), 0.6};
-  c.history_best_mm = {1.5, 1.5, 0.6};
-  c.history_x = Eigen::MatrixXd{{1.0, 120}, {1.3, 150}, {1.12, 131.5}};
+  const CalibrationRecord c = test_support::sample_calibration_record();
   write_calibration_file(dir / "fuzz_calibration" / "calibration.h5", c);
 
   TableFile t;
