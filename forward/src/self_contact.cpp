@@ -251,13 +251,14 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   std::vector<Slot> slots;
   slots.reserve(grid.items().size());
   for (int i : grid.items()) slots.push_back({x.segment<3>(3 * s_.vertices[i]), vertex_uv_[i], i});
-  // The triangles in groups of kSearchGroup (a quadratic face's four): one visit of the grid,
-  // one box test and one exclusion test per vertex and group. Most vertices near a triangle are
-  // its neighbours on the leaflet (the other surface of the same leaflet among them), excluded
-  // for the whole group at once; the others are tested triangle by triangle as before.
-  // Spheres before exclusion: a vertex within `reach` of a triangle is within reach of the
-  // sphere around its corners, a tighter test than the box (half its volume), with a slack far
-  // above round-off so that no pair the exact test keeps is dropped.
+  // The triangles in groups of kSearchGroup (a quadratic face's four): one visit of the grid
+  // (the cells of the group's box grown by `reach`), then one sphere test and one exclusion
+  // test per vertex and group. Most vertices near a triangle are its neighbours on the leaflet
+  // (the other surface of the same leaflet among them), excluded for the whole group at once;
+  // the others are tested triangle by triangle. Spheres rather than boxes: a vertex within
+  // `reach` of a triangle is within reach of the sphere around its corners, a tighter test than
+  // the box (half its volume), with a slack far above round-off so that no pair the exact test
+  // keeps is dropped.
   const double slack = 1e-9 * (1.0 + reach);
   auto search = [&](size_t g0, size_t g1, std::vector<Candidate>* found) {
     Eigen::Vector3d a[kSearchGroup], b[kSearchGroup], c[kSearchGroup], m[kSearchGroup];

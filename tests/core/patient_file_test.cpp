@@ -243,6 +243,34 @@ TEST_F(PatientFile, ErrorsNameTheDatasetAndProblem) {
   EXPECT_NE(e.find("times are not strictly increasing"), std::string::npos) << e;
 }
 
+// A dataset whose dataspace claims more elements than its bytes in the file can hold (here a
+// chunked dataset of the right shape with no chunk written: 0 bytes stored) is refused before
+// the reader allocates for it (the guard the fuzzers' huge-dataspace inputs led to).
+TEST_F(PatientFile, DatasetsClaimingMoreThanTheirStoredBytesAreRefused) {
+  const fs::path p = dir_ / "p.h5";
+  write_patient(p, patient_);
+  std::vector<hsize_t> dims;
+  read_all(p, "/sequence/la_surface", &dims);
+  {
+    const hid_t f = H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    H5Ldelete(f, "/sequence/la_surface", H5P_DEFAULT);
+    const hid_t s = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
+    const hid_t plist = H5Pcreate(H5P_DATASET_CREATE);
+    H5Pset_chunk(plist, static_cast<int>(dims.size()), dims.data());
+    const hid_t d = H5Dcreate2(f, "/sequence/la_surface", H5T_NATIVE_DOUBLE, s, H5P_DEFAULT, plist,
+                               H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    H5Dclose(d);
+    H5Pclose(plist);
+    H5Sclose(s);
+    H5Fclose(f);
+  }
+  const std::string e = read_error(p);
+  EXPECT_NE(e.find("/sequence/la_surface: the dataset claims"), std::string::npos) << e;
+  EXPECT_NE(e.find("0 bytes in the file"), std::string::npos) << e;
+}
+
 TEST_F(PatientFile, FailedWriteLeavesTheOldFileUntouched) {
   const fs::path p = dir_ / "p.h5";
   write_patient(p, patient_);
