@@ -1,7 +1,10 @@
 #include "mvtwin/core/atomic_file.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <atomic>
 #include <string>
@@ -9,6 +12,38 @@
 #include "mvtwin/core/error.h"
 
 namespace mvtwin {
+
+namespace {
+
+// A process killed while writing (SIGKILL, power loss) leaves its temporary file behind: the
+// next write of the same file removes the temporaries of processes that no longer exist
+// (".NAME.tmp-PID-N" with no process PID). A live writer's temporary is never touched.
+void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& name) {
+  const std::string prefix = "." + name + ".tmp-";
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string entry = it->path().filename().string();
+    if (entry.rfind(prefix, 0) != 0) continue;
+    const std::string rest = entry.substr(prefix.size());
+    const size_t dash = rest.find('-');
+    if (dash == 0 || dash == std::string::npos) continue;
+    long pid = 0;
+    try {
+      size_t used = 0;
+      pid = std::stol(rest.substr(0, dash), &used);
+      if (used != dash) continue;
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code rm;
+      std::filesystem::remove(it->path(), rm);
+    }
+  }
+}
+
+}  // namespace
 
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write) {
@@ -19,6 +54,7 @@ void write_atomically(const std::filesystem::path& path,
   if (!std::filesystem::is_directory(dir, ec)) {
     throw Error(path.string() + ": cannot write, directory " + dir.string() + " does not exist");
   }
+  remove_stale_temporaries(dir, path.filename().string());
   const std::filesystem::path tmp =
       dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
              std::to_string(counter++));

@@ -7,7 +7,9 @@ namespace mvtwin {
 /// Writes a file so that a crash or an error never leaves it half-written: `write` is given a
 /// temporary path in the same directory; when it returns, the temporary is flushed to disk and
 /// renamed over `path` (atomic on POSIX). If `write` throws, the temporary is removed, the
-/// exception propagates and an existing file at `path` is untouched.
+/// exception propagates and an existing file at `path` is untouched. A process killed while
+/// writing leaves its temporary behind; the next write of `path` removes the temporaries of
+/// processes that no longer exist.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 
