@@ -62,5 +62,32 @@ TEST(ClipPrediction, ClippedSitesEndTogetherAndTheNoClipRunIsReported) {
   EXPECT_GT(r[0].quality.coaptation.coapting_fraction, 0.5) << "the valve closes";
 }
 
+// Candidates two at a time against one at a time: the same closures bit for bit (scripts/tsan
+// runs this under ThreadSanitizer).
+TEST(ClipPrediction, ConcurrentCandidatesEqualSequentialOnes) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "closures take too long under AddressSanitizer";
+#endif
+  const Patient p = make_virtual_patient(2);
+  forward::ClosureOptions o;
+  o.model.ures = 16;
+  o.model.vres = 8;
+  const std::vector<std::vector<ClipSite>> sites = {
+      {}, {ClipSite{0.5, 1.0}}, {ClipSite{0.3, 1.0}}, {ClipSite{0.3, 1.0}, ClipSite{0.7, 1.0}}};
+  const auto two = simulate_clips(p, p.truth->parameters, o, sites, 2);
+  const auto one = simulate_clips(p, p.truth->parameters, o, sites, 1);
+  ASSERT_EQ(two.size(), sites.size());
+  ASSERT_EQ(one.size(), sites.size());
+  for (size_t i = 0; i < sites.size(); ++i) {
+    const ClosureQuality &a = two[i].quality, &b = one[i].quality;
+    EXPECT_EQ(a.converged, b.converged) << i;
+    EXPECT_EQ(a.reason, b.reason) << i;
+    EXPECT_EQ(a.orifice_area_mm2, b.orifice_area_mm2) << i;
+    EXPECT_EQ(a.coaptation.coapting_fraction, b.coaptation.coapting_fraction) << i;
+    EXPECT_EQ(a.clip_gap_mm, b.clip_gap_mm) << i;
+  }
+  EXPECT_TRUE(two[1].quality.converged) << two[1].quality.reason;
+}
+
 }  // namespace
 }  // namespace mvtwin::inverse
