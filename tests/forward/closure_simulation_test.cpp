@@ -351,14 +351,14 @@ TEST(ClosureSimulation, ErrorControlledStepsEndNearThePapersFixedSteps) {
   EXPECT_EQ(b.summary.interpenetrating_nodes, 0);
 }
 
-// The default steps (error-controlled, 0.1 mm, up to 2 dt) against fixed steps four times
+// The default steps (error-controlled, 0.1 mm, up to 4 dt) against fixed steps four times
 // smaller than the paper's (the time-discretization error) on virtual patient 4 (20 x 10 grid):
-// the default keeps to the small-step closure as well as the paper's fixed dt, within half as
-// much again, with far fewer steps. Measured: fixed dt 0.010 mm mean (max 0.12), default 0.010
-// (0.08) in 129 steps instead of 234. Fixed steps of 2 dt are printed, not compared: whether they
-// stray depends on round-off (friction makes the closed state path-dependent): 0.091 mm (1.29)
-// on one machine, 0.013 (0.09) on another whose BLAS kernels differ.
-TEST(ClosureSimulation, DefaultStepsKeepTheTimeErrorNearThePapersStep) {
+// the default takes well under half the paper's steps and keeps the time error within a quarter
+// of the 0.2 mm accuracy budget (issue 14). Measured: fixed dt 0.010 mm mean (max 0.13) in 234
+// steps, default 0.034 (0.25) in 86. Fixed steps of 2 dt are printed, not compared: whether
+// they stray depends on round-off (friction makes the closed state path-dependent): 0.091 mm
+// (1.29) on one machine, 0.013 (0.09) on another whose BLAS kernels differ.
+TEST(ClosureSimulation, DefaultStepsKeepTheTimeErrorSmallInUnderHalfTheSteps) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "four closures take minutes under AddressSanitizer; run in the -Werror build";
 #endif
@@ -382,9 +382,8 @@ TEST(ClosureSimulation, DefaultStepsKeepTheTimeErrorNearThePapersStep) {
             << e_paper.max_mm << " (" << paper.summary.steps << " steps), default " << e.mean_mm
             << " / " << e.max_mm << " (" << r.summary.steps << " steps), fixed 2 dt "
             << e_twice.mean_mm << " / " << e_twice.max_mm << "\n";
-  EXPECT_LT(r.summary.steps, 0.7 * paper.summary.steps);
+  EXPECT_LT(r.summary.steps, 0.5 * paper.summary.steps);
   EXPECT_LT(e.mean_mm, 0.05);
-  EXPECT_LT(e.mean_mm, std::max(1.5 * e_paper.mean_mm, e_paper.mean_mm + 0.005));
   EXPECT_LT(e.max_mm, 0.6);
 }
 

@@ -44,6 +44,15 @@ void observe_with_the_calibration_model(Patient* p) {
   forward::simulate_observed_closure(p, vo);
 }
 
+/// A start the fit must come back from: every rest-length factor 4 % long. (From the defaults the
+/// small model is already within 0.001 mm of its best fit on this patient, and whether a
+/// 16-simulation budget finds that last micrometre depends on round-off.)
+ValveParameters long_chordae_start() {
+  ValveParameters v;
+  for (double& f : v.restlength_factor) f = 1.04;
+  return v;
+}
+
 std::string marginal_restlengths() {
   return "restlength_factor_" + std::string(kChordaeGroupNames[0]) + ",restlength_factor_" +
          std::string(kChordaeGroupNames[2]);
@@ -93,7 +102,7 @@ TEST(Calibration, RestLengthsImproveTheFitSurviveFailuresAndRepeat) {
   co.max_simulations = 16;
   co.jobs = 2;
   auto run = [&] {
-    ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), oo);
+    ClosureObjective obj(p, ParameterSpace("restlength", long_chordae_start()), oo);
     return calibrate(obj, co);
   };
   const CalibrationResult a = run();
@@ -275,7 +284,7 @@ TEST(Calibration, ASearchModelsFitIsRefinedOnTheModel) {
   const Patient& p = observed_patient();
   ObjectiveOptions model = small_model();
   model.simulation.model.ures = 20;
-  const ParameterSpace space(marginal_restlengths(), ValveParameters{});
+  const ParameterSpace space(marginal_restlengths(), long_chordae_start());
   CalibrationOptions co;
   co.max_simulations = 14;
   co.search_model = small_model().simulation;  // 16 x 8
