@@ -4,11 +4,8 @@
 #include <cmath>
 #include <sstream>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include "mvtwin/core/error.h"
+#include "parallel_indices.h"
 
 namespace mvtwin::inverse {
 
@@ -77,27 +74,19 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
                                          const std::vector<std::vector<ClipSite>>& candidates,
                                          int jobs) {
   std::vector<ClipScenario> out(candidates.size());
-  tbb::task_arena arena(std::max(1, jobs));
-  arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, candidates.size(), 1),
-        [&](const tbb::blocked_range<size_t>& range) {
-          for (size_t i = range.begin(); i != range.end(); ++i) {
-            ClipScenario& sc = out[i];
-            sc.sites = candidates[i];
-            forward::ClosureOptions o = options;
-            o.progress = nullptr;
-            o.clips.clear();
-            for (const ClipSite& s : sc.sites) o.clips.push_back(clip_options(s));
-            try {
-              sc.quality = closure_quality(forward::simulate_closure(patient.sequence, par, o));
-            } catch (const std::exception& e) {
-              sc.quality.converged = false;
-              sc.quality.reason = e.what();
-            }
-          }
-        },
-        tbb::simple_partitioner());
+  parallel_indices(candidates.size(), jobs, [&](size_t i) {
+    ClipScenario& sc = out[i];
+    sc.sites = candidates[i];
+    forward::ClosureOptions o = options;
+    o.progress = nullptr;
+    o.clips.clear();
+    for (const ClipSite& s : sc.sites) o.clips.push_back(clip_options(s));
+    try {
+      sc.quality = closure_quality(forward::simulate_closure(patient.sequence, par, o));
+    } catch (const std::exception& e) {
+      sc.quality.converged = false;
+      sc.quality.reason = e.what();
+    }
   });
   return out;
 }

@@ -4,12 +4,9 @@
 #include <chrono>
 #include <cmath>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
+#include "parallel_indices.h"
 
 namespace mvtwin::inverse {
 namespace {
@@ -170,15 +167,7 @@ Evaluation ClosureObjective::evaluate(const Eigen::VectorXd& x) {
 std::vector<Evaluation> ClosureObjective::evaluate_many(const std::vector<Eigen::VectorXd>& xs,
                                                         int jobs) {
   std::vector<Evaluation> out(xs.size());
-  tbb::task_arena arena(std::max(1, jobs));
-  arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, xs.size(), 1),
-        [&](const tbb::blocked_range<size_t>& r) {
-          for (size_t i = r.begin(); i != r.end(); ++i) out[i] = evaluate(xs[i]);
-        },
-        tbb::simple_partitioner());
-  });
+  parallel_indices(xs.size(), jobs, [&](size_t i) { out[i] = evaluate(xs[i]); });
   return out;
 }
 
