@@ -50,9 +50,24 @@ class KillSafe : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
+  /// What `watched` looks like now (size and change time, or absent) and whether any
+  /// temporary of it exists: the first write changes one or the other.
+  std::string snapshot(const std::string& watched) const {
+    std::error_code ec;
+    std::string s = std::to_string(temporaries_of(watched));
+    if (fs::exists(watched, ec)) {
+      s += " " + std::to_string(fs::file_size(watched, ec)) + " " +
+           std::to_string(fs::last_write_time(watched, ec).time_since_epoch().count());
+    }
+    return s;
+  }
+
   /// Runs mvtwin with args (output to log.txt), killing it with SIGKILL after `deadline_s`
-  /// (never, if negative).
-  Outcome run(const std::vector<std::string>& args, double deadline_s = -1.0) {
+  /// (never, if negative), or, with `watched`, `deadline_s` after the command first touches
+  /// that file or creates a temporary of it: the moment a file is being written, which random
+  /// moments over the whole run would rarely hit.
+  Outcome run(const std::vector<std::string>& args, double deadline_s = -1.0,
+              const std::string& watched = "") {
     const std::string log = path("log.txt");
     std::cout.flush();  // or the child would print the parent's buffered lines again
     std::fflush(nullptr);
@@ -72,6 +87,8 @@ class KillSafe : public ::testing::Test {
     }
     Outcome r;
     int status = 0;
+    const std::string before = watched.empty() ? "" : snapshot(watched);
+    double touched_at = watched.empty() ? 0.0 : -1.0;
     for (;;) {
       const pid_t w = ::waitpid(pid, &status, WNOHANG);
       r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -79,14 +96,15 @@ class KillSafe : public ::testing::Test {
         r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
         return r;
       }
-      if (deadline_s >= 0.0 && r.seconds >= deadline_s) {
+      if (touched_at < 0.0 && snapshot(watched) != before) touched_at = r.seconds;
+      if (deadline_s >= 0.0 && touched_at >= 0.0 && r.seconds >= touched_at + deadline_s) {
         ::kill(pid, SIGKILL);
         ::waitpid(pid, &status, 0);
         r.killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
         if (!r.killed) r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         return r;
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      std::this_thread::sleep_for(std::chrono::microseconds(watched.empty() ? 2000 : 100));
     }
   }
   std::string log() const {
@@ -99,13 +117,16 @@ class KillSafe : public ::testing::Test {
   int temporaries_of(const std::string& file) const {
     int n = 0;
     const std::string prefix = "." + fs::path(file).filename().string() + ".tmp-";
-    for (const auto& e : fs::directory_iterator(fs::path(file).parent_path()))
-      n += e.path().filename().string().rfind(prefix, 0) == 0;
+    std::error_code ec;
+    for (fs::directory_iterator it(fs::path(file).parent_path(), ec), end; !ec && it != end;
+         it.increment(ec))
+      n += it->path().filename().string().rfind(prefix, 0) == 0;
     return n;
   }
 
   /// Kills `args` (which write `out`) at `kills` moments drawn uniformly over 1.1 times the
-  /// uninterrupted run's `full_s`, each time starting from `previous` (copied over `out`, or no
+  /// uninterrupted run's `full_s` (every other run: 0-5 ms after it starts writing `out`), each
+  /// time starting from `previous` (copied over `out`, or no
   /// file when empty); `version(out)` names what is there: "previous", "new" or anything else
   /// (a failure). Returns how many runs were killed before they ended.
   int kill_repeatedly(const std::vector<std::string>& args, const std::string& out,
@@ -118,8 +139,11 @@ class KillSafe : public ::testing::Test {
       std::error_code ec;
       fs::remove(out, ec);
       if (!previous.empty()) fs::copy_file(previous, out);
-      const double at = when(gen);
-      const Outcome r = run(args, at);
+      // Every other run is killed while the output is being written: 0-5 ms after the first
+      // change to it or its temporary.
+      const bool at_write = k % 2 == 1;
+      const double at = at_write ? 0.005 * when(gen) / (1.1 * full_s) : when(gen);
+      const Outcome r = run(args, at, at_write ? out : "");
       killed += r.killed;
       if (!r.killed) {
         EXPECT_EQ(r.exit_code, 0) << "run " << k << ":\n" << log();
@@ -311,7 +335,7 @@ TEST_F(KillSafe, KilledCohortStudyResumesToTheSameNumbersRedoingNothingFinished)
   // Killed again and again at moments spread over the run, each time resumed from what the
   // killed runs left; then run to the end.
   std::mt19937 gen(5);
-  std::uniform_real_distribution<double> when(0.05 * full.seconds, 0.6 * full.seconds);
+  std::uniform_real_distribution<double> when(0.4 * full.seconds, 0.95 * full.seconds);
   const fs::path out = dir_ / "killed";
   int killed = 0;
   for (int k = 0; k < 6; ++k) {
@@ -323,7 +347,13 @@ TEST_F(KillSafe, KilledCohortStudyResumesToTheSameNumbersRedoingNothingFinished)
       return n;
     };
     const int before = count_records();
-    const Outcome r = run(study(out.string()), when(gen));
+    // Every other run is killed 0-5 ms after it first writes into records/ (a patient's record
+    // being written), the others at a moment between 40 and 95 % of the run.
+    const bool at_write = k % 2 == 1;
+    const double at = when(gen);
+    const Outcome r =
+        at_write ? run(study(out.string()), 0.005 * at / full.seconds, (out / "records").string())
+                 : run(study(out.string()), at);
     killed += r.killed;
     if (!r.killed) {
       EXPECT_EQ(r.exit_code, 0) << log();
