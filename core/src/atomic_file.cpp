@@ -7,6 +7,8 @@
 #include <cerrno>
 
 #include <atomic>
+#include <mutex>
+#include <set>
 #include <string>
 
 #include "mvtwin/core/error.h"
@@ -15,16 +17,25 @@ namespace mvtwin {
 
 namespace {
 
-// A process killed while writing (SIGKILL, power loss) leaves its temporary file behind: the
-// next write of the same file removes the temporaries of processes that no longer exist
-// (".NAME.tmp-PID-N" with no process PID). A live writer's temporary is never touched.
-void remove_stale_temporaries(const std::filesystem::path& dir, const std::string& name) {
-  const std::string prefix = "." + name + ".tmp-";
+// A process killed while writing (SIGKILL, power loss) leaves its temporary file behind
+// (".NAME.tmp-PID-N"): the first write of a process into a directory removes the temporaries
+// there whose process PID no longer exists, once per directory (a study writing thousands of
+// records into one folder scans it once, not once per record). A live writer's temporary is
+// never touched.
+void remove_stale_temporaries(const std::filesystem::path& dir) {
+  static std::mutex mutex;
+  static std::set<std::string> cleaned;
   std::error_code ec;
+  const std::string key = std::filesystem::absolute(dir, ec).lexically_normal().string();
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!cleaned.insert(key).second) return;
+  }
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string entry = it->path().filename().string();
-    if (entry.rfind(prefix, 0) != 0) continue;
-    const std::string rest = entry.substr(prefix.size());
+    const size_t mark = entry.rfind(".tmp-");
+    if (entry.empty() || entry[0] != '.' || mark == std::string::npos || mark == 0) continue;
+    const std::string rest = entry.substr(mark + 5);
     const size_t dash = rest.find('-');
     if (dash == 0 || dash == std::string::npos) continue;
     long pid = 0;
@@ -54,7 +65,7 @@ void write_atomically(const std::filesystem::path& path,
   if (!std::filesystem::is_directory(dir, ec)) {
     throw Error(path.string() + ": cannot write, directory " + dir.string() + " does not exist");
   }
-  remove_stale_temporaries(dir, path.filename().string());
+  remove_stale_temporaries(dir);
   const std::filesystem::path tmp =
       dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
              std::to_string(counter++));

@@ -8,8 +8,8 @@ namespace mvtwin {
 /// temporary path in the same directory; when it returns, the temporary is flushed to disk and
 /// renamed over `path` (atomic on POSIX). If `write` throws, the temporary is removed, the
 /// exception propagates and an existing file at `path` is untouched. A process killed while
-/// writing leaves its temporary behind; the next write of `path` removes the temporaries of
-/// processes that no longer exist.
+/// writing leaves its temporary behind; a process's first write into a directory removes the
+/// temporaries there of processes that no longer exist.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write);
 
