@@ -54,7 +54,9 @@ def main():
             ax.axis("off")
         axes[row][0].legend(loc="lower left", fontsize=7)
     tag = "SYNTHETIC " if f.attrs.get("synthetic", 0) else ""
-    fig.suptitle(f"{tag}{f.attrs['patient_id']}: TEE with the stored (red) and detected (green) LA surface")
+    pid = f.attrs["patient_id"]
+    pid = pid.decode() if isinstance(pid, bytes) else pid  # fixed-length text since 2026-11-27
+    fig.suptitle(f"{tag}{pid}: TEE with the stored (red) and detected (green) LA surface")
     fig.tight_layout()
     fig.savefig(out, dpi=70)
 

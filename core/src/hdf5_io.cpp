@@ -1,6 +1,8 @@
 #include "hdf5_io.h"
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <fstream>
 
 #include "mvtwin/core/error.h"
@@ -21,6 +23,110 @@ std::string dims_string(const std::vector<hsize_t>& d) {
   std::string s = "(";
   for (size_t i = 0; i < d.size(); ++i) s += (i ? ", " : "") + std::to_string(d[i]);
   return s + ")";
+}
+
+// Variable-length strings are where libhdf5 1.10 trusts a corrupt file most: H5T__conv_vlen
+// allocates what a string's descriptor claims (1.95 GB for
+// tests/fuzz/regressions/fuzz_simulation/vlen-2gb.h5) and H5HG_read copies a heap object at the
+// size the heap claims (an overlapping memcpy: .../fuzz_calibration/heap-overlap.h5), both
+// before any check. So a contiguous, unfiltered dataset of them (how mvtwin writes them) is
+// decoded here from the file's bytes, each length checked against the heap object that holds
+// it (HDF5 file format spec, "Global Heap" and "Variable-length data"); other layouts go through
+// libhdf5. Returns false when the dataset is not stored that way.
+class FileBytes {
+ public:
+  FileBytes(const std::string& path, std::uint64_t size)
+      : in_(path, std::ios::binary), size_(size) {}
+  bool read(std::uint64_t at, std::uint64_t n, std::vector<unsigned char>* out) {
+    if (!in_ || at > size_ || n > size_ - at) return false;
+    out->resize(static_cast<size_t>(n));
+    in_.seekg(static_cast<std::streamoff>(at));
+    in_.read(reinterpret_cast<char*>(out->data()), static_cast<std::streamsize>(n));
+    return static_cast<std::uint64_t>(in_.gcount()) == n;
+  }
+  std::uint64_t size() const { return size_; }
+
+ private:
+  std::ifstream in_;
+  std::uint64_t size_;
+};
+
+std::uint64_t little_endian(const unsigned char* p, size_t n) {
+  std::uint64_t v = 0;
+  for (size_t i = n; i-- > 0;) v = (v << 8) | p[i];
+  return v;
+}
+
+bool read_vlen_strings_directly(const Location& loc, const std::string& name, hid_t ds,
+                                std::uint64_t n, std::uint64_t file_bytes,
+                                std::vector<std::string>* out) {
+  const Handle dcpl(H5Dget_create_plist(ds), H5Pclose);
+  if (!dcpl.valid() || H5Pget_layout(dcpl.get()) != H5D_CONTIGUOUS ||
+      H5Pget_nfilters(dcpl.get()) != 0)
+    return false;
+  const Handle file(H5Iget_file_id(ds), H5Fclose);
+  const Handle fcpl(H5Fget_create_plist(file.get()), H5Pclose);
+  size_t sizeof_addr = 0, sizeof_size = 0;
+  hsize_t userblock = 0;
+  if (!fcpl.valid() || H5Pget_sizes(fcpl.get(), &sizeof_addr, &sizeof_size) < 0 ||
+      H5Pget_userblock(fcpl.get(), &userblock) < 0 || userblock != 0 || sizeof_addr > 8 ||
+      sizeof_size > 8 || sizeof_addr < 2 || sizeof_size < 2)
+    return false;
+  const haddr_t at = H5Dget_offset(ds);
+  out->assign(static_cast<size_t>(n), std::string());
+  if (at == HADDR_UNDEF) return true;  // never written: the fill value, empty strings
+  auto corrupt = [&](const std::string& what) { loc.fail(name, what + " (file corrupt?)"); };
+  FileBytes bytes(loc.file(), file_bytes);
+  const size_t desc = 4 + sizeof_addr + 4;  // length, heap collection address, object index
+  std::vector<unsigned char> descriptors, collection;
+  if (!bytes.read(at, n * desc, &descriptors)) corrupt("the strings' descriptors lie past the end");
+  std::uint64_t collection_at = HADDR_UNDEF;
+  const size_t header = 8 + sizeof_size, object_header = 8 + sizeof_size;
+  for (std::uint64_t i = 0; i < n; ++i) {
+    const unsigned char* d = descriptors.data() + i * desc;
+    const std::uint64_t length = little_endian(d, 4);
+    const std::uint64_t heap = little_endian(d + 4, sizeof_addr);
+    const std::uint64_t index = little_endian(d + 4 + sizeof_addr, 4);
+    if (length == 0) continue;
+    if (heap != collection_at) {
+      std::vector<unsigned char> head;
+      if (!bytes.read(heap, header, &head) ||
+          std::string(head.begin(), head.begin() + 4) != "GCOL" || head[4] != 1)
+        corrupt("string " + std::to_string(i) + " points to no global heap");
+      const std::uint64_t size = little_endian(head.data() + 8, sizeof_size);
+      if (size < header || !bytes.read(heap, size, &collection))
+        corrupt("a global heap claims more bytes than the file holds");
+      collection_at = heap;
+    }
+    bool found = false;
+    for (std::uint64_t pos = header; pos + object_header <= collection.size();) {
+      const unsigned char* o = collection.data() + pos;
+      const std::uint64_t id = little_endian(o, 2);
+      const std::uint64_t size = little_endian(o + 8, sizeof_size);
+      if (id == 0) break;  // free space ends the objects
+      const std::uint64_t data = pos + object_header;
+      if (size > collection.size() - data) corrupt("a global heap object runs past its heap");
+      if (id == index) {
+        if (length > size)
+          corrupt("string " + std::to_string(i) + " claims " + std::to_string(length) +
+                  " bytes, its heap object holds " + std::to_string(size));
+        const char* c = reinterpret_cast<const char*>(collection.data() + data);
+        (*out)[static_cast<size_t>(i)].assign(c, strnlen(c, static_cast<size_t>(length)));
+        found = true;
+        break;
+      }
+      pos = data + ((size + 7) / 8) * 8;
+    }
+    if (!found) corrupt("string " + std::to_string(i) + "'s heap object is missing");
+  }
+  return true;
+}
+
+// Links (groups) and attributes stay in the object header, under its checksum, however many
+// there are (libhdf5 moves them to a fractal heap past 8 by default).
+bool keep_compact(hid_t create_plist, bool group) {
+  if (H5Pset_attr_phase_change(create_plist, 65535, 0) < 0) return false;
+  return !group || H5Pset_link_phase_change(create_plist, 65535, 65534) >= 0;
 }
 
 Handle string_type() {
@@ -53,7 +159,20 @@ void Location::fail(const std::string& name, const std::string& problem) const {
 
 Location Location::create_file(const std::filesystem::path& path) {
   silence_hdf5();
-  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  // The HDF5 1.10 file format (superblock version 3, version-2 object headers, chunk indexes of
+  // version 4 layouts): every metadata block carries a checksum that libhdf5 verifies before
+  // decoding it, so a file damaged on disk or in transfer is refused ("incorrect metadata
+  // checksum") instead of decoded, where libhdf5 1.10 has known crashes on malformed metadata
+  // (docs/fuzzing.md). Links and attributes are kept in the object headers (compact storage):
+  // the fractal heaps of dense storage leave their data blocks unchecksummed. Read by HDF5 1.10
+  // and later (h5py, ParaView, 3D Slicer).
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  if (!fapl.valid() || H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V110, H5F_LIBVER_V110) < 0)
+    throw Error(path.string() + ": cannot set up the HDF5 file format");
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  if (!fcpl.valid() || !keep_compact(fcpl.get(), true))
+    throw Error(path.string() + ": cannot set up the HDF5 file format");
+  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
   if (id < 0)
     throw Error(path.string() + ": cannot create HDF5 file (directory missing or not writable?)");
   return Location(Handle(id, H5Fclose), path.string(), "/");
@@ -79,6 +198,7 @@ Location Location::open_file(const std::filesystem::path& path) {
 
 Location Location::create_group(const std::string& name, bool track_order) const {
   Handle plist(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+  if (!keep_compact(plist.get(), true)) fail(name, "cannot set up the group");
   if (track_order) {
     H5Pset_link_creation_order(plist.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
   }
@@ -105,6 +225,7 @@ void write_dataset(const Location& loc, const std::string& name, hid_t type, con
                    const std::vector<hsize_t>& dims, bool compress) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
   Handle plist(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!keep_compact(plist.get(), false)) loc.fail(name, "cannot set up the dataset");
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
   if (compress && total > 0) {
@@ -237,12 +358,24 @@ std::vector<std::string> Location::read_strings(const std::string& name) const {
   if (H5Tget_class(ftype.get()) != H5T_STRING || !H5Tis_variable_str(ftype.get())) {
     fail(name, "expected variable-length strings");
   }
-  std::vector<char*> ptrs(static_cast<size_t>(std::max<hssize_t>(n, 0)), nullptr);
+  // Every string descriptor takes 16 bytes in the file (compressed at deflate's most, 1032:1).
+  hsize_t file_bytes = 0;
+  {
+    const Handle file(H5Iget_file_id(ds.get()), H5Fclose);
+    if (!file.valid() || H5Fget_filesize(file.get(), &file_bytes) < 0) fail(name, "no file size");
+  }
+  if (n < 0 || static_cast<double>(n) * 16.0 > 1032.0 * static_cast<double>(file_bytes) + 1024.0)
+    fail(name, "the dataset claims " + std::to_string(n) + " strings, more than its file holds" +
+                   " (file corrupt?)");
+  std::vector<std::string> out;
+  if (read_vlen_strings_directly(*this, name, ds.get(), static_cast<std::uint64_t>(n), file_bytes,
+                                 &out))
+    return out;
+  std::vector<char*> ptrs(static_cast<size_t>(n), nullptr);
   const Handle t = string_type();
   if (n > 0 && H5Dread(ds.get(), t.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0) {
-    fail(name, "cannot read strings");
+    fail(name, "cannot read strings (file truncated or corrupt?)");
   }
-  std::vector<std::string> out;
   for (char* p : ptrs) out.emplace_back(p ? p : "");
   H5Dvlen_reclaim(t.get(), space.get(), H5P_DEFAULT, ptrs.data());
   return out;
@@ -265,11 +398,16 @@ void write_attr(const Location& loc, hid_t obj, const std::string& name, hid_t t
 
 void Location::attr(const std::string& name, const std::string& v,
                     const std::string& object) const {
+  // Fixed-length, not variable-length: the text then sits in the attribute's object header,
+  // under its checksum, instead of in a global heap that libhdf5 1.10 decodes unchecked (a
+  // corrupt heap crashed it: docs/fuzzing.md). h5py reads it as bytes.
   const Handle obj = open_object(object);
-  const Handle t = string_type();
+  Handle t(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(t.get(), v.size() + 1);
+  H5Tset_strpad(t.get(), H5T_STR_NULLTERM);
+  H5Tset_cset(t.get(), H5T_CSET_UTF8);
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  const char* p = v.c_str();
-  write_attr(*this, obj.get(), name, t.get(), space.get(), &p);
+  write_attr(*this, obj.get(), name, t.get(), space.get(), v.c_str());
 }
 
 void Location::attr(const std::string& name, long v, const std::string& object) const {
@@ -335,6 +473,9 @@ std::string Location::attr_string(const std::string& name) const {
     return s;
   }
   const size_t n = H5Tget_size(ftype.get());
+  if (n == 0 || n > (1u << 26))
+    fail("", "attribute '" + name + "' claims a string of " + std::to_string(n) +
+                 " bytes (file corrupt?)");
   std::string s(n, '\0');
   if (H5Aread(a.get(), ftype.get(), s.data()) < 0) fail("", "cannot read attribute '" + name + "'");
   return s.substr(0, s.find('\0'));

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -10,6 +11,7 @@
 #include "../support/sample_records.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
+#include "mvtwin/core/table_file.h"
 #include "mvtwin/core/virtual_patient.h"
 
 namespace mvtwin {
@@ -64,6 +66,126 @@ TEST(SimulationFile, BadFilesAreNamed) {
   EXPECT_THROW(write_simulation_file(dir / "bad.h5", r), Error);
   EXPECT_FALSE(fs::exists(dir / "bad.h5"));
   fs::remove_all(dir);
+}
+
+std::string file_bytes(const fs::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+void put_bytes(const fs::path& f, const std::string& b) {
+  std::ofstream(f, std::ios::binary | std::ios::trunc) << b;
+}
+
+// Result files are written in HDF5's checksummed format (superblock version 3, version-2
+// object headers, links and attributes kept in the headers), so damaged metadata is refused by
+// libhdf5 instead of decoded (issue 15, docs/fuzzing.md). Every byte of the superblock and of
+// the root group's object header (its attributes and links) is flipped in turn: each damaged
+// file must be refused with mvtwin::Error. Then 600 bytes spread over the whole file: each must
+// read (raw data or padding) or give mvtwin::Error; a crash or another exception fails the test
+// (and the ASan flavour catches memory errors).
+TEST(SimulationFile, DamagedMetadataIsRefusedByItsChecksum) {
+  const fs::path dir = fs::temp_directory_path() / ("mvtwin_simsum_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path f = dir / "s.h5";
+  write_simulation_file(f, sample_record());
+  const std::string good = file_bytes(f);
+  auto u = [&](std::size_t at, int n) {
+    std::uint64_t v = 0;
+    for (int k = n - 1; k >= 0; --k) v = (v << 8) | static_cast<unsigned char>(good.at(at + k));
+    return v;
+  };
+  ASSERT_EQ(u(8, 1), 3u) << "superblock version (3: checksummed, HDF5 1.10)";
+  // Superblock v3: signature 8, version, offset and length sizes, flags, four addresses
+  // (base, extension, end of file, root object header), checksum: 48 bytes.
+  const std::size_t root = u(36, 8);
+  ASSERT_EQ(good.substr(root, 4), "OHDR") << "root object header (version 2)";
+  const unsigned flags = static_cast<unsigned char>(good[root + 5]);
+  std::size_t at = root + 6 + ((flags & 0x20) ? 16 : 0) + ((flags & 0x10) ? 4 : 0);
+  const int width = 1 << (flags & 3);
+  const std::size_t end = at + width + u(at, width) + 4;  // chunk 0 and its checksum
+  ASSERT_LT(end, good.size());
+  ASSERT_GT(end - root, 200u) << "the root's attributes are not in its header";
+  std::vector<std::size_t> metadata;
+  for (std::size_t i = 0; i < 48; ++i) metadata.push_back(i);
+  for (std::size_t i = root; i < end; ++i) metadata.push_back(i);
+  auto damaged_read = [&](std::size_t i) {
+    std::string bad = good;
+    bad[i] = static_cast<char>(bad[i] ^ 0x5a);
+    put_bytes(f, bad);
+    try {
+      read_simulation_file(f);
+      return true;
+    } catch (const Error&) {
+      return false;
+    }
+  };
+  int read = 0;
+  for (std::size_t i : metadata) {
+    const bool ok = damaged_read(i);
+    read += ok;
+    EXPECT_FALSE(ok) << "byte " << i << " of the metadata flipped and the file still read";
+  }
+  EXPECT_EQ(read, 0) << "of " << metadata.size() << " metadata bytes flipped";
+  const std::size_t stride = std::max<std::size_t>(1, good.size() / 600) | 1;
+  for (std::size_t i = 0; i < good.size(); i += stride) damaged_read(i);  // only Error, no crash
+  fs::remove_all(dir);
+}
+
+// Variable-length strings are decoded from the file's global heap by mvtwin, each length
+// checked against its heap object: a heap object claiming more bytes than its heap holds is
+// refused by name (libhdf5 1.10 copied it unchecked: tests/fuzz/regressions/).
+TEST(SimulationFile, StringsClaimingMoreThanTheirHeapHoldsAreRefused) {
+  const fs::path dir = fs::temp_directory_path() / ("mvtwin_simheap_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path f = dir / "s.h5";
+  write_simulation_file(f, sample_record());
+  std::string b = file_bytes(f);
+  const std::size_t heap = b.find("GCOL");
+  ASSERT_NE(heap, std::string::npos) << "no global heap: the strings are not variable-length?";
+  // Collection header: "GCOL", version, 3 reserved, size (8); then the first object: index (2),
+  // reference count (2), reserved (4), size (8).
+  const std::size_t object_size = heap + 16 + 8;
+  ASSERT_EQ(static_cast<unsigned char>(b[heap + 16]), 1u) << "first heap object's index";
+  for (int k = 0; k < 8; ++k) b[object_size + k] = static_cast<char>(k < 4 ? 0xff : 0x00);
+  put_bytes(f, b);
+  try {
+    read_simulation_file(f);
+    FAIL() << "a heap object of 4 GB was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("global heap object runs past its heap"),
+              std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(dir);
+}
+
+// Files written before the checksummed format (superblock version 0, variable-length
+// attributes and strings in a global heap) still read: a study table committed with the docs.
+TEST(SimulationFile, FilesInTheEarlierFormatStillRead) {
+  const fs::path old = fs::path(MVTWIN_SOURCE_DIR) / "docs/studies/robustness/study.h5";
+  ASSERT_TRUE(fs::exists(old)) << old;
+  ASSERT_EQ(static_cast<int>(file_bytes(old)[8]), 0) << "no longer a file of the earlier format";
+  const TableFile t = read_table_file(old);
+  EXPECT_EQ(t.format.rfind("mvtwin-", 0), 0u) << t.format;
+  ASSERT_FALSE(t.columns.empty());
+  bool strings = false;
+  for (const TableColumn& c : t.columns) {
+    EXPECT_GT(c.size(), 0u) << c.name;
+    if (c.is_strings()) {
+      strings = true;
+      for (const std::string& v : c.strings) EXPECT_EQ(v.find('\0'), std::string::npos);
+    }
+    if (c.name == "outcome") {  // decoded text, not just bytes: every value is an outcome
+      ASSERT_EQ(c.strings.size(), 200u);
+      for (const std::string& v : c.strings)
+        EXPECT_TRUE(v == "converged" || v == "clean_failure") << v;
+    }
+  }
+  EXPECT_TRUE(strings) << "no string column to read";
+  bool version = false;
+  for (const auto& [k, v] : t.attributes)
+    version |= k == "mvtwin_version" && v.rfind("0.1", 0) == 0;
+  EXPECT_TRUE(version);
 }
 
 }  // namespace
