@@ -324,11 +324,68 @@ void write_outputs(const RobustnessStudyOptions& o, const RobustnessStudyResult&
       s.x.push_back(c.dt);
       s.y.push_back(c.peak_pressure_mmhg);
     }
-    for (auto& [k, s] : by) fig.series.push_back(s);
+    // Converged cases first: the failures are drawn over them, not hidden under them.
+    if (by.count("converged")) fig.series.push_back(by["converged"]);
+    for (auto& [k, s] : by)
+      if (k != "converged") fig.series.push_back(s);
     if (!fig.series.empty()) {
       fig.write_png(f.path("outcomes.png"));
       rep.figure("outcomes.png",
-                 "Every case by its time step and peak pressure, marked by outcome.");
+                 "Every case by its time step and peak pressure, marked by outcome (failures on "
+                 "top).");
+    }
+  }
+  {
+    // The share of each outcome per decade-third of the time step: readable at any number of
+    // cases, where the scatter above saturates.
+    constexpr int kBins = 6;
+    double lo = 0, hi = 0;
+    bool any = false;
+    for (const auto& c : r.cases) {
+      if (c.dt <= 0) continue;
+      const double l = std::log10(c.dt);
+      lo = any ? std::min(lo, l) : l;
+      hi = any ? std::max(hi, l) : l;
+      any = true;
+    }
+    if (any && hi > lo) {
+      std::map<std::string, std::vector<double>> count;
+      std::vector<double> total(kBins, 0.0);
+      for (const auto& c : r.cases) {
+        if (c.dt <= 0) continue;
+        const int b =
+            std::min(kBins - 1, static_cast<int>((std::log10(c.dt) - lo) / (hi - lo) * kBins));
+        const std::string key = c.outcome == "clean_failure" ? c.failure_kind : c.outcome;
+        if (key == "converged") continue;
+        count[key].resize(kBins, 0.0);
+        count[key][b] += 1;
+        total[b] += 1;
+      }
+      for (const auto& c : r.cases)
+        if (c.dt > 0 && c.outcome == "converged")
+          total[std::min(kBins - 1,
+                         static_cast<int>((std::log10(c.dt) - lo) / (hi - lo) * kBins))] += 1;
+      Plot fig;
+      fig.title = "Failures against the time step";
+      fig.x_label = "time step, s (bin centre)";
+      fig.y_label = "cases in the bin, %";
+      fig.log_x = true;
+      for (const auto& [k, n] : count) {
+        PlotSeries s;
+        s.name = k;
+        for (int b = 0; b < kBins; ++b) {
+          if (total[b] == 0) continue;
+          s.x.push_back(std::pow(10.0, lo + (b + 0.5) * (hi - lo) / kBins));
+          s.y.push_back(100.0 * n[b] / total[b]);
+        }
+        fig.series.push_back(s);
+      }
+      if (!fig.series.empty()) {
+        fig.write_png(f.path("failure_rates.png"));
+        rep.figure("failure_rates.png",
+                   "Share of the cases in each time-step bin that failed, by typed reason "
+                   "(crashes and non-finite outputs would be their own lines).");
+      }
     }
   }
   rep.how_made(o.command, r.workers, r.wall_s);
