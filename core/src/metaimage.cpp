@@ -84,7 +84,7 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
     throw Error(what + ": not a MetaImage header (needs NDims ... ElementDataFile)");
   if (field.count("objecttype") && lower(field["objecttype"]) != "image")
     throw Error(what + ": MetaImage ObjectType '" + field["objecttype"] + "' is not Image");
-  const int nd = static_cast<int>(raw::number(field["ndims"], what + " (NDims)"));
+  const int nd = static_cast<int>(raw::whole_number(field["ndims"], what + " (NDims)", 0, 64));
   if (nd != 3 && nd != 4)
     throw Error(what + ": expected a 3D or 3D+t image, found NDims = " + std::to_string(nd));
   if (field.count("elementnumberofchannels") &&
@@ -143,7 +143,7 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
     if (dp.is_relative()) dp = path.parent_path() / dp;
     data = raw::read_file_bytes(dp);
     if (field.count("headersize")) {
-      const long hs = static_cast<long>(raw::number(field["headersize"], what + " (HeaderSize)"));
+      const long hs = raw::whole_number(field["headersize"], what + " (HeaderSize)", -1, 1L << 50);
       if (hs == -1 && data.size() >= need)
         data.erase(0, data.size() - need);
       else if (hs > 0 && static_cast<std::size_t>(hs) <= data.size())

@@ -143,7 +143,8 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     return it->second;
   };
   const VoxelType type = nrrd_type(need("type"), what);
-  const int dim = static_cast<int>(raw::number(need("dimension"), what + " (dimension)"));
+  const int dim =
+      static_cast<int>(raw::whole_number(need("dimension"), what + " (dimension)", 0, 64));
   if (dim != 3 && dim != 4)
     throw Error(what + ": expected a 3D or 3D+t image, found dimension " + std::to_string(dim));
   const std::vector<std::string> size_words = raw::words(need("sizes"));
@@ -228,7 +229,7 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
     data = bytes.substr(pos);
   }
   if (field.count("lineskip")) {
-    const long skip = static_cast<long>(raw::number(field["lineskip"], what + " (line skip)"));
+    const long skip = raw::whole_number(field["lineskip"], what + " (line skip)", 0, 1L << 40);
     std::size_t p = 0;
     for (long i = 0; i < skip; ++i) {
       p = data.find('\n', p);
@@ -240,7 +241,7 @@ std::vector<ImageVolume> read_nrrd_series(const fs::path& path,
   const std::string encoding = field.count("encoding") ? lower(field["encoding"]) : "raw";
   const long byte_skip =
       field.count("byteskip")
-          ? static_cast<long>(raw::number(field["byteskip"], what + " (byte skip)"))
+          ? raw::whole_number(field["byteskip"], what + " (byte skip)", -1, 1L << 50)
           : 0;
   const std::size_t need_bytes = total * static_cast<std::size_t>(raw::bytes_of(type));
   std::vector<float> values;

@@ -1,6 +1,7 @@
 #include "raw_voxels.h"
 
 #include <zlib.h>
+#include <cmath>
 
 #include <algorithm>
 #include <bit>
@@ -186,6 +187,17 @@ double number(const std::string& s, const std::string& what) {
   }
   if (t == "nan" || t == "NaN") return std::numeric_limits<double>::quiet_NaN();
   throw Error(what + ": '" + t + "' is not a number");
+}
+
+long whole(double v, const std::string& what, long lo, long hi) {
+  if (!(v >= static_cast<double>(lo) && v <= static_cast<double>(hi) && v == std::floor(v)))
+    throw Error(what + ": " + format_number(v) + " is not a whole number from " +
+                std::to_string(lo) + " to " + std::to_string(hi));
+  return static_cast<long>(v);
+}
+
+long whole_number(const std::string& s, const std::string& what, long lo, long hi) {
+  return whole(number(s, what), what, lo, hi);
 }
 
 }  // namespace mvtwin::raw

@@ -46,5 +46,11 @@ std::vector<std::string> words(const std::string& s);
 /// Parses a floating-point number that must fill `s` (after trimming); throws mvtwin::Error
 /// with `what` in the message otherwise.
 double number(const std::string& s, const std::string& what);
+/// A whole number read from a file (as a double): throws mvtwin::Error naming `what` unless it
+/// is finite, integral and in [lo, hi] (a cast of 1e300 to an integer is undefined behaviour;
+/// the fuzzers found three).
+long whole(double v, const std::string& what, long lo, long hi);
+/// number() that must also be whole and in [lo, hi].
+long whole_number(const std::string& s, const std::string& what, long lo, long hi);
 
 }  // namespace mvtwin::raw

@@ -334,10 +334,9 @@ SurfaceFile read_ply(const std::string& bytes, const std::string& what) {
       std::vector<long> poly;
       for (const Prop& pr : e.props) {
         if (pr.list) {
-          const long n = static_cast<long>(next(pr.count_type));
-          if (n < 0 || n > 1000)
-            throw Error(what + ": implausible polygon size " + std::to_string(n));
-          for (long k = 0; k < n; ++k) poly.push_back(static_cast<long>(next(pr.type)));
+          const long n = raw::whole(next(pr.count_type), what + " (polygon size)", 0, 1000);
+          for (long k = 0; k < n; ++k)
+            poly.push_back(raw::whole(next(pr.type), what + " (vertex index)", 0, 1L << 40));
         } else {
           const double v = next(pr.type);
           if (pr.name == "x") p.x() = v;
@@ -431,10 +430,13 @@ SurfaceFile read_vtk_legacy(const std::string& bytes, const std::string& what) {
         }
         const auto cw = raw::words(cl);
         const auto con = read_numbers(b, cw.size() > 1 ? lower(cw[1]) : "int64");
+        const long ncon = static_cast<long>(con.size());
         for (long c = 0; c + 1 < a; ++c) {
           std::vector<long> poly;
-          for (long k = static_cast<long>(off[c]); k < static_cast<long>(off[c + 1]); ++k)
-            poly.push_back(static_cast<long>(con[k]));
+          const long first = raw::whole(off[c], what + " (offsets)", 0, ncon);
+          const long last = raw::whole(off[c + 1], what + " (offsets)", first, ncon);
+          for (long k = first; k < last; ++k)
+            poly.push_back(raw::whole(con[k], what + " (connectivity)", 0, 1L << 40));
           if (use)
             strips ? add_strip(poly, static_cast<long>(V.size()), &F, what)
                    : add_polygon(poly, static_cast<long>(V.size()), &F, what);
@@ -445,11 +447,12 @@ SurfaceFile read_vtk_legacy(const std::string& bytes, const std::string& what) {
         size_t k = 0;
         for (long c = 0; c < a; ++c) {
           if (k >= v.size()) throw Error(what + ": cell list ends early");
-          const long n = static_cast<long>(v[k++]);
+          const long n = raw::whole(v[k++], what + " (cell size)", 0, 1L << 40);
           if (n < 0 || k + static_cast<size_t>(n) > v.size())
             throw Error(what + ": bad cell size " + std::to_string(n));
           std::vector<long> poly;
-          for (long j = 0; j < n; ++j) poly.push_back(static_cast<long>(v[k++]));
+          for (long j = 0; j < n; ++j)
+            poly.push_back(raw::whole(v[k++], what + " (cell)", 0, 1L << 40));
           if (use)
             strips ? add_strip(poly, static_cast<long>(V.size()), &F, what)
                    : add_polygon(poly, static_cast<long>(V.size()), &F, what);
@@ -622,14 +625,16 @@ SurfaceFile read_vtp(const std::string& bytes, const std::string& what) {
     if (!a.count("connectivity") || !a.count("offsets"))
       throw Error(what + ": <" + element + "> lacks connectivity or offsets");
     const auto off = read_array(a["offsets"].first, a["offsets"].second, count);
-    const size_t ncon = static_cast<size_t>(off.back());
+    const size_t ncon =
+        static_cast<size_t>(raw::whole(off.back(), what + " (offsets)", 0, 1L << 40));
     const auto con = read_array(a["connectivity"].first, a["connectivity"].second, ncon);
     size_t start = 0;
     for (size_t c = 0; c < count; ++c) {
-      const size_t stop = static_cast<size_t>(off[c]);
+      const size_t stop = static_cast<size_t>(raw::whole(off[c], what + " (offsets)", 0, 1L << 40));
       if (stop < start || stop > con.size()) throw Error(what + ": bad offsets");
       std::vector<long> poly;
-      for (size_t k = start; k < stop; ++k) poly.push_back(static_cast<long>(con[k]));
+      for (size_t k = start; k < stop; ++k)
+        poly.push_back(raw::whole(con[k], what + " (connectivity)", 0, 1L << 40));
       element == "Polys" ? add_polygon(poly, static_cast<long>(V.size()), &F, what)
                          : add_strip(poly, static_cast<long>(V.size()), &F, what);
       start = stop;

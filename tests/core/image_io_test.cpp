@@ -236,6 +236,28 @@ TEST_F(ImageIo, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeAllocating) {
   e = error_of(dir_ / "bomb.mha");
   EXPECT_NE(e.find("bomb.mha"), std::string::npos) << e;
   EXPECT_NE(e.find("compression bomb"), std::string::npos) << e;
+  // Numbers that no integer holds (found by fuzz_metaimage and fuzz_nrrd: casting them was
+  // undefined behaviour) are refused by name.
+  const size_t nd = mha.find("NDims = ");
+  ASSERT_NE(nd, std::string::npos);
+  write_text(dir_ / "ndims.mha",
+             mha.substr(0, nd) + "NDims = 7.8e18" + mha.substr(mha.find('\n', nd)));
+  e = error_of(dir_ / "ndims.mha");
+  EXPECT_NE(e.find("NDims"), std::string::npos) << e;
+  EXPECT_NE(e.find("not a whole number"), std::string::npos) << e;
+  write_image_series(dir_ / "one.nrrd", {series_[0]});
+  std::string nrrd;
+  {
+    std::ifstream f(dir_ / "one.nrrd", std::ios::binary);
+    nrrd.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  const size_t dim = nrrd.find("dimension: ");
+  ASSERT_NE(dim, std::string::npos);
+  write_text(dir_ / "dim.nrrd",
+             nrrd.substr(0, dim) + "dimension: 4.4e108" + nrrd.substr(nrrd.find('\n', dim)));
+  e = error_of(dir_ / "dim.nrrd");
+  EXPECT_NE(e.find("dimension"), std::string::npos) << e;
+  EXPECT_NE(e.find("not a whole number"), std::string::npos) << e;
   // The files as written still read.
   EXPECT_EQ(read_image_series(dir_ / "one.nii").size(), 1u);
   EXPECT_EQ(read_image_series(dir_ / "one.mha").size(), 1u);

@@ -122,6 +122,26 @@ TEST(SurfaceMesh, BadFilesAreNamed) {
          "format=\"ascii\"></DataArray></Points></Piece></PolyData></VTKFile>",
          "no triangles");
   expect("image.vtp", "<VTKFile type=\"ImageData\"></VTKFile>", "not VTK PolyData");
+  // Numbers that no integer holds (found by fuzz_surface_mesh: casting them was undefined
+  // behaviour) are refused by name.
+  expect("huge.vtk",
+         "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 "
+         "0\nPOLYGONS 1 4\n3 0 1 1e300\n",
+         "not a whole number");
+  expect("huge.ply",
+         "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty "
+         "float z\nelement face 1\n"
+         "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 -4e18\n",
+         "not a whole number");
+  expect("offsets.vtp",
+         "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" "
+         "NumberOfPolys=\"1\"><Points>"
+         "<DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+         "format=\"ascii\">0 0 0 1 0 0 0 1 0</DataArray></Points><Polys>"
+         "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">0 1 2</DataArray>"
+         "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">-5.5e8</DataArray>"
+         "</Polys></Piece></PolyData></VTKFile>",
+         "not a whole number");
   EXPECT_THROW(read_surface_mesh(temp("missing.stl")), Error);
 }
 
