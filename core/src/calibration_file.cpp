@@ -1,5 +1,7 @@
 #include "mvtwin/core/calibration_file.h"
 
+#include <cmath>
+
 #include "hdf5_io.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
@@ -127,14 +129,21 @@ CalibrationRecord read_calibration_file(const std::filesystem::path& path) {
   r.covariance = m("covariance");
   r.correlation = m("correlation");
   r.noise_mm = fit.read_scalar("noise_mm");
+  // A count stored as a double: a whole number an int holds (the fuzzers found 6e223 cast).
+  auto count = [&](const std::string& name) {
+    const double x = fit.read_scalar(name);
+    if (!(x >= 0 && x <= 2147483647.0 && x == std::floor(x)))
+      fit.fail(name, "expected a count, found " + std::to_string(x));
+    return static_cast<int>(x);
+  };
   r.error_before_mm = fit.read_scalar("error_before_mm");
   r.error_after_mm = fit.read_scalar("error_after_mm");
-  r.simulations = static_cast<int>(fit.read_scalar("simulations"));
-  r.failed_simulations = static_cast<int>(fit.read_scalar("failed_simulations"));
-  r.cache_hits = static_cast<int>(fit.read_scalar("cache_hits"));
+  r.simulations = count("simulations");
+  r.failed_simulations = count("failed_simulations");
+  r.cache_hits = count("cache_hits");
   r.wall_s = fit.read_scalar("wall_s");
   if (fit.exists("search_simulations")) {
-    r.search_simulations = static_cast<int>(fit.read_scalar("search_simulations"));
+    r.search_simulations = count("search_simulations");
     r.search_error_before_mm = fit.read_scalar("search_error_before_mm");
     r.search_error_after_mm = fit.read_scalar("search_error_after_mm");
   }

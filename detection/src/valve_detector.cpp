@@ -5,8 +5,10 @@
 #include <cmath>
 #include <numeric>
 
+#include <zlib.h>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+
 #include <opencv2/core.hpp>
 #include <opencv2/ml.hpp>
 
@@ -589,15 +591,50 @@ void ValveDetector::save(const std::filesystem::path& path,
 
 namespace {
 
+/// The text of a model file, gunzipped when it ends in .gz (at most kMaxModelBytes either way).
+constexpr std::size_t kMaxModelBytes = std::size_t{1} << 30;
+std::string model_text(const std::filesystem::path& path, const std::string& what) {
+  std::string text;
+  gzFile f = gzopen(path.c_str(), "rb");  // reads plain files as they are
+  if (!f) throw Error(what + ": cannot be opened for reading (permissions?)");
+  char buf[1 << 16];
+  int n = 0;
+  while ((n = gzread(f, buf, sizeof buf)) > 0) {
+    text.append(buf, static_cast<std::size_t>(n));
+    if (text.size() > kMaxModelBytes) {
+      gzclose(f);
+      throw Error(what + ": more than 1 GB of model text (not a detector model?)");
+    }
+  }
+  int code = Z_OK;
+  const char* message = n < 0 ? gzerror(f, &code) : nullptr;
+  const std::string why = message ? message : "";
+  gzclose(f);
+  if (n < 0) throw Error(what + ": the compressed model is corrupt (" + why + ")");
+  return text;
+}
+
 /// Opens a model file for reading; throws mvtwin::Error naming it when it is missing, unreadable
 /// or not an mvtwin detector model.
 cv::FileStorage open_model(const std::filesystem::path& path) {
   const std::string what = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw Error(what + ": no such file");
+  // OpenCV 4.6's YAML parser never returns on some malformed text (the fuzzer found 84 bytes:
+  // several "%YAML" directives and documents with NUL bytes between them). A model as
+  // train-detector writes it is one YAML document of text: anything else is refused before
+  // the parser sees it, and the parser reads the checked text from memory.
+  const std::string text = model_text(path, what);
+  if (text.find('\0') != std::string::npos)
+    throw Error(what + ": not a detector model (a NUL byte: binary, not YAML text)");
+  if (text.rfind("%YAML:1.0\n---\n", 0) != 0 && text.rfind("%YAML:1.0\r\n---\r\n", 0) != 0)
+    throw Error(what + ": not a detector model (it must start with '%YAML:1.0' and '---')");
+  if (text.find("%YAML", 1) != std::string::npos || text.find("\n---", 14) != std::string::npos ||
+      text.find("\n...", 0) != std::string::npos)
+    throw Error(what + ": not a detector model (more than one YAML document)");
   cv::FileStorage fs;
   try {
-    fs.open(what, cv::FileStorage::READ);
+    fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
   } catch (const std::exception& e) {  // cv::Exception, std::length_error from the parser
     throw Error(what + ": not a readable detector model (" + std::string(e.what()).substr(0, 200) +
                 ")");
