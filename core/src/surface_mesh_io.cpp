@@ -404,6 +404,7 @@ SurfaceFile read_vtk_legacy(const std::string& bytes, const std::string& what) {
     l = getline();
     if (l.empty()) continue;
     const auto w = raw::words(l);
+    if (w.empty()) continue;  // whitespace trim() keeps (a vertical tab: fuzz_surface_mesh)
     const std::string key = lower(w[0]);
     if (key == "points" && w.size() >= 3) {
       const long n = std::stol(w[1]);
