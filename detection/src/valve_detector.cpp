@@ -632,6 +632,34 @@ cv::FileStorage open_model(const std::filesystem::path& path) {
   if (text.find("%YAML", 1) != std::string::npos || text.find("\n---", 14) != std::string::npos ||
       text.find("\n...", 0) != std::string::npos)
     throw Error(what + ": not a detector model (more than one YAML document)");
+  // What OpenCV's writer puts in a model: printable ASCII, tabs and line ends, balanced flow
+  // brackets outside quotes, no anchors or aliases. Its parser also never returned on a
+  // 135-byte text of one document with bytes above 127 and an unclosed '[' (the fuzzer's
+  // second 10-minute run).
+  std::vector<char> open;
+  bool quoted = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (!(c == '\n' || c == '\r' || c == '\t' || (c >= 0x20 && c < 0x7f)))
+      throw Error(what + ": not a detector model (byte " + std::to_string(c) + " at offset " +
+                  std::to_string(i) + ": not the ASCII text train-detector writes)");
+    if (c == '"') quoted = !quoted;
+    if (quoted) continue;
+    if (c == '*' || c == '&')
+      throw Error(what + ": not a detector model (a YAML anchor or alias at offset " +
+                  std::to_string(i) + ")");
+    if (c == '[' || c == '{') {
+      open.push_back(c == '[' ? ']' : '}');
+      if (open.size() > 64) throw Error(what + ": not a detector model (brackets nested > 64)");
+    } else if (c == ']' || c == '}') {
+      if (open.empty() || open.back() != static_cast<char>(c))
+        throw Error(what + ": not a detector model (unbalanced brackets at offset " +
+                    std::to_string(i) + ")");
+      open.pop_back();
+    }
+  }
+  if (quoted || !open.empty())
+    throw Error(what + ": not a detector model (an unclosed quote or bracket)");
   cv::FileStorage fs;
   try {
     fs.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);

@@ -192,6 +192,10 @@ TEST(ValveDetector, MalformedModelFilesGetAnErrorNamingTheFile) {
   EXPECT_NE(e.find("NUL byte"), std::string::npos) << e;
   e = error_of("two.yml", head + "scales: [ 4, 2 ]\n---\nformat: mvtwin-valve-detector\n");
   EXPECT_NE(e.find("more than one YAML document"), std::string::npos) << e;
+  e = error_of("bracket.yml", head + "scales: [ 4., [ 2.\n");
+  EXPECT_NE(e.find("unclosed quote or bracket"), std::string::npos) << e;
+  e = error_of("latin1.yml", head + "scales: [ 4., 2\xbf ]\n");
+  EXPECT_NE(e.find("byte 191"), std::string::npos) << e;
   e = error_of("json.yml", "{\"format\": \"mvtwin-valve-detector\"}");
   EXPECT_NE(e.find("must start with '%YAML:1.0'"), std::string::npos) << e;
   std::filesystem::remove_all(dir);
