@@ -586,11 +586,15 @@ SurfaceFile read_vtp(const std::string& bytes, const std::string& what) {
     int unnamed = 0;
     while ((p = bytes.find("<DataArray", p)) != std::string::npos && p < e) {
       const size_t te = bytes.find('>', p);
+      // Without its '>' the search started over from the file's beginning, for ever
+      // (fuzz_surface_mesh's third 10-minute run).
+      if (te == std::string::npos) throw Error(what + ": a <DataArray tag is not closed by '>'");
       const std::string tag = bytes.substr(p, te - p + 1);
       std::string body;
       size_t next = te + 1;
       if (tag[tag.size() - 2] != '/') {
         const size_t close = bytes.find("</DataArray>", te);
+        if (close == std::string::npos) throw Error(what + ": a <DataArray> has no </DataArray>");
         body = bytes.substr(te + 1, close - te - 1);
         next = close;
       }

@@ -127,6 +127,15 @@ TEST(SurfaceMesh, BadFilesAreNamed) {
          "<DataArray type=\"Float32\" NumberOfComponents=\"3\" "
          "format=\"ascii\"></DataArray></Points></Piece></PolyData></VTKFile>",
          "no triangles");
+  // A <DataArray without its '>' restarted the search from the beginning for ever.
+  expect("open.vtp",
+         "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" "
+         "NumberOfPolys=\"1\"><Points><DataArray type",
+         "not closed by '>'");
+  expect("unclosed.vtp",
+         "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"3\" "
+         "NumberOfPolys=\"1\"><Points><DataArray type=\"Float32\">0 0 0",
+         "has no </DataArray>");
   expect("image.vtp", "<VTKFile type=\"ImageData\"></VTKFile>", "not VTK PolyData");
   // Numbers that no integer holds (found by fuzz_surface_mesh: casting them was undefined
   // behaviour) are refused by name.
