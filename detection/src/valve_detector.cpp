@@ -1,6 +1,7 @@
 #include "mvtwin/detection/valve_detector.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -629,9 +630,34 @@ cv::FileStorage open_model(const std::filesystem::path& path) {
     throw Error(what + ": not a detector model (a NUL byte: binary, not YAML text)");
   if (text.rfind("%YAML:1.0\n---\n", 0) != 0 && text.rfind("%YAML:1.0\r\n---\r\n", 0) != 0)
     throw Error(what + ": not a detector model (it must start with '%YAML:1.0' and '---')");
-  if (text.find("%YAML", 1) != std::string::npos || text.find("\n---", 14) != std::string::npos ||
-      text.find("\n...", 0) != std::string::npos)
+  if (text.find("%YAML", 1) != std::string::npos || text.find("---", 14) != std::string::npos ||
+      text.find("...", 0) != std::string::npos)
     throw Error(what + ": not a detector model (more than one YAML document)");
+  // The document is a mapping: every line that is not indented starts with a key (a 33-byte
+  // document of flow sequences and empty items hung the parser: the fuzzer's fourth run).
+  for (std::size_t at = text.find('\n', text.find("---")) + 1; at < text.size();) {
+    const std::size_t eol = std::min(text.find('\n', at), text.size());
+    const std::string line = text.substr(at, eol - at);
+    const std::size_t colon = line.find(':');
+    const bool indented = !line.empty() && (line[0] == ' ' || line[0] == '\t');
+    bool key = colon != std::string::npos && colon > 0 &&
+               std::isalpha(static_cast<unsigned char>(line[0]));
+    for (std::size_t k = 0; key && k < colon; ++k)
+      key = std::isalnum(static_cast<unsigned char>(line[k])) || line[k] == '_' || line[k] == '-';
+    if (!indented && !(line.empty() || line == "\r") && !key)
+      throw Error(what + ": not a detector model (line '" + line.substr(0, 40) +
+                  "' is neither a key nor indented)");
+    at = eol + 1;
+  }
+  // No empty items in a flow sequence ("[ ,", ", ,", ", ]"): OpenCV's writer never makes one.
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] != '[' && text[i] != ',') continue;
+    std::size_t j = i + 1;
+    while (j < text.size() && std::isspace(static_cast<unsigned char>(text[j]))) ++j;
+    if (j < text.size() && (text[j] == ',' || (text[j] == ']' && text[i] == ',')))
+      throw Error(what + ": not a detector model (an empty item in a sequence at offset " +
+                  std::to_string(i) + ")");
+  }
   // What OpenCV's writer puts in a model: printable ASCII, tabs and line ends, balanced flow
   // brackets outside quotes, no anchors or aliases. Its parser also never returned on a
   // 135-byte text of one document with bytes above 127 and an unclosed '[' (the fuzzer's

@@ -196,6 +196,12 @@ TEST(ValveDetector, MalformedModelFilesGetAnErrorNamingTheFile) {
   EXPECT_NE(e.find("unclosed quote or bracket"), std::string::npos) << e;
   e = error_of("latin1.yml", head + "scales: [ 4., 2\xbf ]\n");
   EXPECT_NE(e.find("byte 191"), std::string::npos) << e;
+  e = error_of("flow.yml", "%YAML:1.0\n---\n[1.]\n[ --- ]\n[ ,]\n");
+  EXPECT_NE(e.find("more than one YAML document"), std::string::npos) << e;
+  e = error_of("list.yml", "%YAML:1.0\n---\n[1.]\n");
+  EXPECT_NE(e.find("neither a key nor indented"), std::string::npos) << e;
+  e = error_of("empty.yml", head + "scales: [ 4., , 2. ]\n");
+  EXPECT_NE(e.find("an empty item"), std::string::npos) << e;
   e = error_of("json.yml", "{\"format\": \"mvtwin-valve-detector\"}");
   EXPECT_NE(e.find("must start with '%YAML:1.0'"), std::string::npos) << e;
   std::filesystem::remove_all(dir);
