@@ -25,14 +25,7 @@ std::string dims_string(const std::vector<hsize_t>& d) {
   return s + ")";
 }
 
-// Variable-length strings are where libhdf5 1.10 trusts a corrupt file most: H5T__conv_vlen
-// allocates what a string's descriptor claims (1.95 GB for
-// tests/fuzz/regressions/fuzz_simulation/vlen-2gb.h5) and H5HG_read copies a heap object at the
-// size the heap claims (an overlapping memcpy: .../fuzz_calibration/heap-overlap.h5), both
-// before any check. So a contiguous, unfiltered dataset of them (how mvtwin writes them) is
-// decoded here from the file's bytes, each length checked against the heap object that holds
-// it (HDF5 file format spec, "Global Heap" and "Variable-length data"); other layouts go through
-// libhdf5. Returns false when the dataset is not stored that way.
+// Bounded reads of a file's bytes (for decoding what libhdf5 would decode unchecked).
 class FileBytes {
  public:
   FileBytes(const std::string& path, std::uint64_t size)
@@ -44,7 +37,6 @@ class FileBytes {
     in_.read(reinterpret_cast<char*>(out->data()), static_cast<std::streamsize>(n));
     return static_cast<std::uint64_t>(in_.gcount()) == n;
   }
-  std::uint64_t size() const { return size_; }
 
  private:
   std::ifstream in_;
@@ -57,6 +49,14 @@ std::uint64_t little_endian(const unsigned char* p, size_t n) {
   return v;
 }
 
+// Variable-length strings are where libhdf5 1.10 trusts a corrupt file most: H5T__conv_vlen
+// allocates what a string's descriptor claims (1.95 GB for
+// tests/fuzz/regressions/fuzz_simulation/vlen-string-2gb.h5) and H5HG_read copies a heap object at
+// the size the heap claims (an overlapping memcpy: .../fuzz_calibration/heap-object-overlap.h5),
+// both before any check. So a contiguous, unfiltered dataset of them (how mvtwin writes them) is
+// decoded here from the file's bytes, each length checked against the heap object that holds
+// it (HDF5 file format spec, "Global Heap" and "Variable-length data"); other layouts go through
+// libhdf5. Returns false when the dataset is not stored that way.
 bool read_vlen_strings_directly(const Location& loc, const std::string& name, hid_t ds,
                                 std::uint64_t n, std::uint64_t file_bytes,
                                 std::vector<std::string>* out) {
