@@ -195,8 +195,8 @@ int run_bench_closure(const BenchClosureArgs& a) {
             << "  contact_s " << s.contact_s << "\nerror_mean_mm " << e.mean << "  error_max_mm "
             << e.max << " (against the reference)\n";
   if (a.rest) {
-    // The same settings, then held at peak pressure until at rest: how far the timed run's end
-    // lags behind the valve at rest, which the reference (same loading) shares.
+    // The same settings, then held at peak pressure until at rest (0.001 mm per step): how far
+    // the timed run's end still lags behind the valve at rest.
     std::vector<std::string> rs = a.sets;
     rs.insert(rs.end(), kRestSettings.begin(), kRestSettings.end());
     std::cout << "at-rest run (" << join(kRestSettings) << ") ..." << std::endl;
@@ -298,9 +298,11 @@ void register_bench(CLI::App& app, Context& ctx) {
         "otherwise and is repeated (--repeat; wall_s is the fastest, all are listed). The\n"
         "reference is a finer, smaller-step run (--ref-set); error_mean_mm / error_max_mm are\n"
         "the symmetric point-to-mesh distances between the end surfaces. --ref-file keeps the\n"
-        "reference as a simulation file and reuses it when its settings match. rest_lag_mean_mm /\n"
-        "rest_lag_max_mm: the timed run's end against the same settings held at peak pressure\n"
-        "until at rest (settling; --no-rest skips it): the damping lag the reference shares.");
+        "reference as a simulation file and reuses it when its settings match. The reference\n"
+        "ends settled at peak pressure (no step moves it 0.001 mm): the closed valve at rest, so\n"
+        "the error includes the timed run's damping lag (it ends when the load peaks unless\n"
+        "--set settle_mm=... settles it). rest_lag_mean_mm / rest_lag_max_mm: the timed run's\n"
+        "end against the same settings settled to 0.001 mm (--no-rest skips it): the lag alone.");
     auto a = std::make_shared<BenchClosureArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for the timed run (repeatable)");
