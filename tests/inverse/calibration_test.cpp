@@ -46,8 +46,8 @@ void observe_with_the_calibration_model(Patient* p) {
 
 /// The exact model's fixed values: the hidden parameters, with the fitted ones (`selection`)
 /// back at their defaults, where the fit starts. Only the fitted parameters then differ from the
-/// observation's (the fixed ones at the defaults instead, as before issue 16, left the marginal
-/// factors to make up for the hidden stiffness and pressure: the truth was not the minimum).
+/// observation's (with the others at the defaults, the fitted ones make up for the hidden
+/// stiffness and pressure, and the truth is not the minimum).
 ValveParameters truth_with_defaults_for(const Patient& p, const std::string& selection) {
   const ParameterSpace defaults(selection, ValveParameters{});
   return ParameterSpace(selection, p.truth->parameters).apply(defaults.start());

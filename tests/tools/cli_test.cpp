@@ -460,10 +460,10 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
 // (both unsettled: settle_mm=0, the paper's end state) the error against it is exactly zero,
 // while the same settings held at peak pressure until at rest (settling) end elsewhere: the lag
 // is positive and reported with its settling; --no-rest leaves it out. Settled to 0.01 mm, the
-// timed run lags behind rest less than half as much. --ref-set adds to the
-// reference's defaults: the reference keeps their fixed steps (the timed run asks for them) and
-// takes the timed run's grid, dt and tolerance; were the defaults replaced, the reference would
-// take error-controlled steps and the error not be 0.
+// timed run lags behind rest less than half as much. --ref-set adds to the reference's defaults:
+// the reference keeps their fixed steps (the timed run asks for them) and takes the timed run's
+// grid, dt and tolerance; were the defaults replaced, the reference would take error-controlled
+// steps and the error not be 0.
 TEST_F(Cli, BenchClosureMeasuresTheLagBehindRest) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "three closures: too long under AddressSanitizer";
