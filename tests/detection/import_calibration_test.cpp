@@ -19,6 +19,10 @@ inverse::ObjectiveOptions small_model() {
   inverse::ObjectiveOptions o;
   o.simulation.model.ures = 16;
   o.simulation.model.vres = 8;
+  // Unsettled: on this coarse model the end state at rest jumps with the rest lengths (where the
+  // valve creeps, docs/forward-status.md), and with it the imported patient's fit stopped at
+  // 1.05 against a truth of 0.99. What is tested here is the import, on a smooth objective.
+  o.simulation.settle_mm = 0.0;
   return o;
 }
 
