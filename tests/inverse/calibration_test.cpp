@@ -342,7 +342,12 @@ TEST(Calibration, ASearchModelsFitIsRefinedOnTheModel) {
   ASSERT_TRUE(paper.has_value());
   EXPECT_EQ(paper->model.ures, 24);
   EXPECT_EQ(paper->model.vres, 24);
-  EXPECT_EQ(paper->dt, forward::ClosureOptions{}.dt) << "only the grid changes";
+  EXPECT_EQ(paper->dt, forward::ClosureOptions{}.dt) << "only the grid and the settling change";
+  EXPECT_EQ(paper->settle_mm, forward::ClosureOptions{}.settle_mm);
+  EXPECT_EQ(paper->settle_max_s, 1.0);
+  forward::ClosureOptions short_settling;
+  short_settling.settle_max_s = 0.5;
+  EXPECT_EQ(search_model_for(short_settling)->settle_max_s, 0.5) << "never longer than the model's";
 }
 
 TEST(Calibration, MethodsByNameAndInvalidOptionsAreRefusedBeforeAnyWork) {

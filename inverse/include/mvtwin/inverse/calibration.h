@@ -68,8 +68,9 @@ struct CalibrationOptions {
 };
 
 /// The default search model for calibrating with `model`: the same model at 0.8 of its grid in
-/// each direction (24 x 24 for the paper's 30 x 30: a closure costs about 0.6 of one there)
-/// when it has at least 25 points around the annulus, else none (the fit searches on `model`).
+/// each direction (24 x 24 for the paper's 30 x 30: a closure costs about 0.6 of one there),
+/// settling for at most 1 s, when it has at least 25 points around the annulus, else none (the
+/// fit searches on `model`).
 std::optional<forward::ClosureOptions> search_model_for(const forward::ClosureOptions& model);
 
 /// The refinement's candidates: damped Gauss-Newton steps from x, for the distances r and their
