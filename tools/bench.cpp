@@ -300,9 +300,10 @@ void register_bench(CLI::App& app, Context& ctx) {
         "the symmetric point-to-mesh distances between the end surfaces. --ref-file keeps the\n"
         "reference as a simulation file and reuses it when its settings match. The reference\n"
         "ends settled at peak pressure (no step moves it 0.001 mm): the closed valve at rest, so\n"
-        "the error includes the timed run's damping lag (it ends when the load peaks unless\n"
-        "--set settle_mm=... settles it). rest_lag_mean_mm / rest_lag_max_mm: the timed run's\n"
-        "end against the same settings settled to 0.001 mm (--no-rest skips it): the lag alone.");
+        "the error includes what is left of the timed run's damping lag (it settles to 0.01 mm\n"
+        "by default; --set settle_mm=0 ends it when the load peaks). rest_lag_mean_mm /\n"
+        "rest_lag_max_mm: the timed run's end against the same settings settled to 0.001 mm\n"
+        "(--no-rest skips it): the lag alone.");
     auto a = std::make_shared<BenchClosureArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for the timed run (repeatable)");

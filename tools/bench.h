@@ -21,8 +21,8 @@ struct BenchClosureArgs : CommandArgs {
 };
 
 /// Settled to rest: held at peak pressure until no step moves the valve by 0.001 mm (up to 20 s;
-/// settling is off by default, docs/forward-status.md). bench closure's reference ends so, and
-/// its at-rest comparison settles the timed run's settings so.
+/// ten times tighter than the default settling, docs/forward-status.md). bench closure's
+/// reference ends so, and its at-rest comparison settles the timed run's settings so.
 inline const std::vector<std::string> kRestSettings = {"settle_mm=0.001", "settle_max_dt=0.08",
                                                        "settle_max_s=20"};
 
