@@ -220,9 +220,12 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << num(opt.contact.friction_slip_mm_per_s)
      << " mm/s: a drag that a static analysis has no velocity for, and that vanishes at rest),\n"
      << "the inversion guard, the clip phase.\n"
-     << "Choices: nodes numbered by reverse Cuthill-McKee for a small skyline profile (node set\n"
-     << "mvtwin_order lists the FEBio id of mvtwin's nodes 0, 1, ... in order); an automatic time\n"
-     << "stepper that halves failed steps (25 retries); leaflet contact as FEBio's contact\n"
+     << "Choices: the leaflets as FEBio's neo-Hookean transiso with mvtwin's constants (the same\n"
+     << "stiffness at small strain; unlike St Venant-Kirchhoff it does not soften in compression\n"
+     << "and resists collapse, as J -> 0, in place of the inversion guard); nodes numbered by\n"
+     << "reverse Cuthill-McKee for a small skyline profile (node set mvtwin_order lists the FEBio\n"
+     << "id of mvtwin's nodes 0, 1, ... in order); an automatic time stepper that halves failed\n"
+     << "steps (aggressiveness 1, 25 retries); leaflet contact as FEBio's contact\n"
      << "potential with mvtwin's penalty, distances and 4 mm neighbour exclusion, on the atrial,\n"
      << "ventricular and rim (free edge, commissural) faces; each chorda pulls its whole\n"
      << "cross-section, one spring of 1/k of the force per node, whose curve reads the node's\n"
@@ -235,8 +238,12 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << num(opt.dt) << "</step_size>\n"
      << "    <time_stepper type=\"default\">\n      <max_retries>25</max_retries>\n"
      << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
-     << "</dtmin>\n      <dtmax>" << num(opt.dt) << "</dtmax>\n"
-     << "      <aggressiveness>0</aggressiveness>\n      <cutback>0.5</cutback>\n"
+     << "</dtmin>\n      <dtmax>" << num(opt.dt)
+     << "</dtmax>\n"
+     // aggressiveness 1: a failed step is retried at cutback x dt. With 0, FEBio ignores the
+     // cutback and shortens the step by dt / (max_retries + 1) per retry (FETimeStepController::
+     // Retry), so 25 retries never get below dt / 26.
+     << "      <aggressiveness>1</aggressiveness>\n      <cutback>0.5</cutback>\n"
      << "    </time_stepper>\n    <solver type=\"solid\">\n"
      << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
      << "      <optimize_bw>1</optimize_bw>\n    </solver>\n"
@@ -248,13 +255,10 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   for (int k = 0; k < 2; ++k) {
     const TransverselyIsotropic& t = scene.leaflet_material[k];
     os << "    <material id=\"" << k + 1 << "\" name=\"" << names[k]
-       << "\" type=\"orthotropic elastic\">\n      <density>" << num(opt.density)
-       << "</density>\n      <E1>" << num(t.e_fibre) << "</E1>\n      <E2>" << num(t.e_cross)
-       << "</E2>\n      <E3>" << num(t.e_cross) << "</E3>\n      <v12>" << num(t.nu_fibre)
-       << "</v12>\n      <v23>" << num(t.nu_cross) << "</v23>\n      <v31>"
-       << num(t.nu_fibre * t.e_cross / t.e_fibre) << "</v31>\n      <G12>" << num(t.g_fibre)
-       << "</G12>\n      <G23>" << num(t.g_cross()) << "</G23>\n      <G31>" << num(t.g_fibre)
-       << "</G31>\n    </material>\n";
+       << "\" type=\"neo-Hookean transiso\">\n      <density>" << num(opt.density)
+       << "</density>\n      <Ep>" << num(t.e_cross) << "</Ep>\n      <Ez>" << num(t.e_fibre)
+       << "</Ez>\n      <vz>" << num(t.nu_fibre) << "</vz>\n      <vp>" << num(t.nu_cross)
+       << "</vp>\n      <gz>" << num(t.g_fibre) << "</gz>\n    </material>\n";
   }
   // Elements the inversion guard held: neo-Hookean, domains of their own (ids 3 and 4).
   std::vector<char> is_guarded(static_cast<size_t>(mesh.num_elements()), 0);
@@ -280,7 +284,7 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
        << "</node>\n";
   os << "    </Nodes>\n";
   const int npe = mesh.nodes_per_element();
-  // Domains 0, 1: the leaflets (orthotropic); 2, 3: their guarded elements (neo-Hookean).
+  // Domains 0, 1: the leaflets (neo-Hookean transiso); 2, 3: their guarded elements (neo-Hookean).
   std::vector<int> elements_of[4];
   for (int e = 0; e < mesh.num_elements(); ++e) {
     const int leaflet = mesh.tag[e] == static_cast<int>(LeafletTag::kAnterior) ? 0 : 1;

@@ -76,6 +76,100 @@ TEST(FebioExport, SpringCurveFollowsTheChordaLaw) {
   EXPECT_NEAR(evaluate(clip, 1.0 - 10.0), 0.0, 1e-12);
 }
 
+// FEBio's "neo-Hookean transiso" (FEBioMech/FENeoHookeanTransIso.cpp, transcribed here): the
+// Cauchy stress for deformation gradient F, fibre (symmetry axis) a0 = e1.
+Eigen::Matrix3d nhti_stress(const Eigen::Matrix3d& F, double ep, double ez, double vz, double vp,
+                            double gz) {
+  const double J = F.determinant();
+  Eigen::Vector3d a = F.col(0);
+  const double lam = a.norm();
+  a /= lam;
+  const Eigen::Matrix3d B = F * F.transpose();
+  const double I1 = B.trace(), I3 = J * J, I4 = lam * lam;
+  const double gp = ep / (2 * (1 + vp));
+  const double den = (1 + vp) * (ez * (-1 + vp) + 2 * ep * vz * vz);
+  const double lamp = -(ep * (ez * vp + ep * vz * vz)) / den;
+  const double lamz = (ez * ez * (-1 + vp * vp) - ep * (ep + 4 * (gp + gz) * (1 + vp)) * vz * vz +
+                       ez * (2 * gz - ep * vp - 2 * gz * vp * vp - 2 * gp * (-1 + vp * vp) +
+                             2 * ep * vz + 2 * ep * vp * vz)) /
+                      den;
+  const double alpha = (ep * (ep * vz * vz - ez * (vp * (-1 + vz) + vz))) / den;
+  const Eigen::Vector3d Ba = B * a;
+  Eigen::Matrix3d s;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      s(i, j) = 2 *
+                (B(i, j) * (gp / 2 + alpha * (I4 - 1) / 4) +
+                 (a(j) * Ba(i) + a(i) * Ba(j)) * (gz - gp) * I4 / 2 +
+                 (i == j ? I3 * (-gp / (2 * I3) + (J - 1) * lamp / (2 * J)) : 0.0) +
+                 a(i) * a(j) * I4 *
+                     (gz / 2 + alpha * (I1 - 3) / 4 - gz / (2 * I4) - (gz - gp) * I4 +
+                      (lam - 1) * lamz / (2 * lam))) /
+                J;
+  return s;
+}
+
+// The leaflets' FEBio law, with the constants valve.feb gives it, linearizes to mvtwin's
+// transversely isotropic stiffness (finite differences of FEBio's stress at the reference), and
+// unlike St Venant-Kirchhoff (FEBio's "orthotropic elastic", written before) it does not soften
+// in compression: the first Piola stress of confined compression across the fibre grows
+// monotonically to stretch 0.1, where St Venant-Kirchhoff's falls back towards zero below a
+// stretch of 1/sqrt(3).
+TEST(FebioExport, LeafletLawLinearizesToMvtwinsAndStiffensInCompression) {
+  const ClosureOptions o = small_options();
+  const ClosureScene scene = small_scene();
+  const fs::path dir = fs::temp_directory_path() / ("mvtwin_law_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  export_scene(scene, o, dir, "law test", {});
+  const std::string feb = slurp(dir / "valve.feb");
+  fs::remove_all(dir);
+  for (int k = 0; k < 2; ++k) {
+    const size_t at = feb.find("<material id=\"" + std::to_string(k + 1) + "\"");
+    ASSERT_NE(at, std::string::npos);
+    const std::string m = feb.substr(at, feb.find("</material>", at) - at);
+    ASSERT_NE(m.find("type=\"neo-Hookean transiso\""), std::string::npos) << m;
+    const auto v = [&m](const std::string& tag) {
+      const size_t p = m.find("<" + tag + ">");
+      EXPECT_NE(p, std::string::npos) << tag;
+      return std::stod(m.substr(p + tag.size() + 2, 24));
+    };
+    const double ep = v("Ep"), ez = v("Ez"), vz = v("vz"), vp = v("vp"), gz = v("gz");
+    const auto sigma = [&](const Eigen::Matrix3d& F) { return nhti_stress(F, ep, ez, vz, vp, gz); };
+    // Voigt (11, 22, 33, 23, 13, 12), engineering shear strains, as stiffness_local().
+    const int vi[6][2] = {{0, 0}, {1, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+    Eigen::Matrix<double, 6, 6> C;
+    const double h = 1e-6;
+    for (int c = 0; c < 6; ++c) {
+      Eigen::Matrix3d Fp = Eigen::Matrix3d::Identity(), Fm = Eigen::Matrix3d::Identity();
+      const int i = vi[c][0], j = vi[c][1];
+      const double d = i == j ? h : h / 2;
+      Fp(i, j) += d;
+      Fm(i, j) -= d;
+      if (i != j) {
+        Fp(j, i) += d;
+        Fm(j, i) -= d;
+      }
+      const Eigen::Matrix3d ds = (sigma(Fp) - sigma(Fm)) / (2 * h);
+      for (int r = 0; r < 6; ++r) C(r, c) = ds(vi[r][0], vi[r][1]);
+    }
+    const Eigen::Matrix<double, 6, 6> ref = scene.leaflet_material[k].stiffness_local();
+    EXPECT_LT((C - ref).cwiseAbs().maxCoeff(), 1e-6 * ref.cwiseAbs().maxCoeff())
+        << "leaflet " << k << "\nFEBio:\n"
+        << C << "\nmvtwin:\n"
+        << ref;
+    // Confined compression across the fibre: F = diag(1, l, 1).
+    double previous = 0.0;
+    for (double l = 0.95; l > 0.09; l -= 0.05) {
+      const Eigen::Matrix3d F = Eigen::Vector3d(1.0, l, 1.0).asDiagonal();
+      const double p22 = (F.determinant() * sigma(F) * F.inverse().transpose())(1, 1);
+      EXPECT_LT(p22, previous) << "softens at stretch " << l;
+      previous = p22;
+    }
+    // Stiffer than the co-rotational law, whose stress here is C22 (l - 1) = -0.9 C22 at 0.1.
+    EXPECT_LT(previous, -ref(1, 1));
+  }
+}
+
 // export_scene writes every file; valve.feb holds the whole scene (elements, nodes with the
 // papillary tips, one boundary condition per prescribed node and axis, one spring per chorda
 // end node and clip, load curves numbered 1..n and all referenced ones defined); the pressure
@@ -109,6 +203,12 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   // with the parameters derived from mvtwin's penalty.
   EXPECT_EQ(count(feb, "<time_stepper type=\"default\">"), 1);
   EXPECT_EQ(count(feb, "<max_retries>25</max_retries>"), 1);
+  // Failed steps are retried at half the step: FEBio uses the cutback only with aggressiveness
+  // 1 (with 0 it shortens a retried step by dt / 26 each time).
+  EXPECT_EQ(count(feb, "<aggressiveness>1</aggressiveness>"), 1);
+  EXPECT_EQ(count(feb, "<cutback>0.5</cutback>"), 1);
+  EXPECT_EQ(count(feb, "type=\"neo-Hookean transiso\""), 2);
+  EXPECT_EQ(count(feb, "orthotropic elastic"), 0);
   EXPECT_EQ(count(feb, "<optimize_bw>1</optimize_bw>"), 1);
   // The node positions logged as text in mvtwin's order.
   EXPECT_EQ(count(feb,

@@ -12,9 +12,11 @@ namespace mvtwin::forward {
 /// Writes the closure scene as an FEBio input file (febio_spec 4.0, docs/febio-export.md), so
 /// that FEBio, the field's open solver, can run the same scene:
 ///   - the leaflets' quadratic (tet10) or linear (tet4) tetrahedra in two domains, anterior and
-///     posterior, each an "orthotropic elastic" material with the transversely isotropic
-///     constants (E1 = E_fibre, E2 = E3 = E_cross, G12 = G31, G23 = E2 / (2 (1 + nu23)),
-///     v12 = v23 = nu, v31 = nu E3 / E1) and a per-element material axis (a = the fibre);
+///     posterior, each a "neo-Hookean transiso" material (FEBio's compressible transversely
+///     isotropic neo-Hookean: Ez = E_fibre, Ep = E_cross, vz = nu12, vp = nu23, gz = G12),
+///     which linearizes to mvtwin's stiffness and, unlike St Venant-Kirchhoff ("orthotropic
+///     elastic"), neither softens in compression nor lets an element collapse, and a
+///     per-element material axis (a = the fibre, the material's symmetry axis);
 ///   - each chorda as "nonlinear spring"s from every node of its insertion cross-section to a
 ///     node at its papillary tip (febio_chorda_springs), with the continuous bilinear,
 ///     tension-only law as a force-elongation curve that accounts for the rest length;
@@ -85,10 +87,10 @@ std::vector<RimFace> rim_faces(const ClosureScene& scene);
 /// mvtwin's model in mvtwin's order (node set mvtwin_order), "FEBio-id x y z" in mm.
 inline constexpr const char* kFebioNodeLog = "febio_nodes.txt";
 
-/// `guarded`: elements mvtwin's inversion guard held (ClosureResult::guarded_elements). FEBio has
-/// no such guard and its orthotropic elastic law (St Venant-Kirchhoff) lets them collapse, so
-/// they are written as compressible neo-Hookean (E = the leaflet's cross-fibre modulus, v = its
-/// Poisson ratio), whose energy grows without bound as J -> 0, in domains of their own.
+/// `guarded`: elements mvtwin's inversion guard held (ClosureResult::guarded_elements), written as
+/// isotropic compressible neo-Hookean (E = the leaflet's cross-fibre modulus, v = its Poisson
+/// ratio) in domains of their own. (Written when the leaflets were St Venant-Kirchhoff, which
+/// lets such elements collapse; the leaflets' law now resists collapse itself.)
 void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
                  const ClosureOptions& options, const std::string& comment,
                  const std::vector<int>& guarded = {});
