@@ -60,17 +60,26 @@ std::vector<std::pair<double, double>> febio_spring_curve(double initial, double
 }
 
 FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
-                                              double stiffness_per_area) {
+                                              double stiffness_per_area, double peak_pressure_mpa) {
   FebioContactPotential cp;
-  cp.r_in = contact.contact_mm;
-  cp.r_out = contact.alarm_mm;
+  cp.r_in = kFebioContactRangeFactor * contact.contact_mm;
+  cp.r_out = kFebioContactRangeFactor * contact.alarm_mm;
   cp.r0_min = contact.exclusion_mm * contact.exclusion_mm;
   // Pressure at gap g in [R_in, R_out) between parallel surfaces: (2 pi / 3) c1 g (R_out - g)^3;
-  // equal to k (d_a - d_c) at g = R_in: c1 = 3 k / (2 pi R_in (R_out - R_in)^2), and FEBio's
+  // equal to k (R_out - R_in) at g = R_in: c1 = 3 k / (2 pi R_in (R_out - R_in)^2), and FEBio's
   // c1 = p kc / (2 (R_out - R_in) R_in^(p + 1)).
   const double w = cp.r_out - cp.r_in;
   const double c1 = 3.0 * stiffness_per_area / (2.0 * M_PI * cp.r_in * w * w);
   cp.kc = 2.0 * c1 * w * std::pow(cp.r_in, cp.p + 1.0) / cp.p;
+  // The gap at which it presses with the peak pressure: P(g) / P(R_in) = g (R_out - g)^3 /
+  // (R_in w^3) decreases on [R_in, R_out) (its maximum is at R_out / 4 < R_in), so bisect.
+  const double target = peak_pressure_mpa / (stiffness_per_area * w);
+  double lo = cp.r_in, hi = cp.r_out;
+  for (int i = 0; i < 100; ++i) {
+    const double g = 0.5 * (lo + hi);
+    (g * std::pow(cp.r_out - g, 3) / (cp.r_in * w * w * w) > target ? lo : hi) = g;
+  }
+  cp.gap_at_peak = 0.5 * (lo + hi);
   return cp;
 }
 
@@ -225,9 +234,13 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "and resists collapse, as J -> 0, in place of the inversion guard); nodes numbered by\n"
      << "reverse Cuthill-McKee for a small skyline profile (node set mvtwin_order lists the FEBio\n"
      << "id of mvtwin's nodes 0, 1, ... in order); an automatic time stepper that halves failed\n"
-     << "steps (aggressiveness 1, 25 retries); leaflet contact as FEBio's contact\n"
-     << "potential with mvtwin's penalty, distances and 4 mm neighbour exclusion, on the atrial,\n"
-     << "ventricular and rim (free edge, commissural) faces; each chorda pulls its whole\n"
+     << "steps (aggressiveness 1, 10 retries: dt / 1024); leaflet contact as FEBio's contact\n"
+     << "potential between the leaflets' atrial, ventricular and rim (free edge, commissural)\n"
+     << "faces, with mvtwin's minimum distance as R_in, twice its alarm distance as R_out (the\n"
+     << "potential acts between integration points, and a range near their spacing made the\n"
+     << "static solve stall in contact), kc such that it presses with the peak pressure at\n"
+     << "mvtwin's coaptation gap, and mvtwin's 4 mm neighbour exclusion; each chorda pulls its "
+        "whole\n"
      << "cross-section, one spring of 1/k of the force per node, whose curve reads the node's\n"
      << "elongation as the mean point's (mvtwin pulls the mean point: equal while the section\n"
      << "does not rotate). FEBio 4 compares R0_min with the squared reference distance, hence\n"
@@ -236,13 +249,14 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
      << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
      << num(opt.dt) << "</step_size>\n"
-     << "    <time_stepper type=\"default\">\n      <max_retries>25</max_retries>\n"
+     << "    <time_stepper type=\"default\">\n      <max_retries>10</max_retries>\n"
      << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
      << "</dtmin>\n      <dtmax>" << num(opt.dt)
      << "</dtmax>\n"
      // aggressiveness 1: a failed step is retried at cutback x dt. With 0, FEBio ignores the
      // cutback and shortens the step by dt / (max_retries + 1) per retry (FETimeStepController::
-     // Retry), so 25 retries never get below dt / 26.
+     // Retry), so 25 retries never got below dt / 26. Ten halvings reach dtmin = dt / 1024; FEBio
+     // does not stop a retried step at dtmin, and patient 3 spent 25 retries down to 1e-13 s.
      << "      <aggressiveness>1</aggressiveness>\n      <cutback>0.5</cutback>\n"
      << "    </time_stepper>\n    <solver type=\"solid\">\n"
      << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
@@ -475,8 +489,13 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
 
   if (opt.contact.enabled) {
     const FebioContactPotential cp = febio_contact_potential(
-        opt.contact, opt.contact.stiffness_per_area(scene.peak_pressure_mpa));
-    os << "  <Contact>\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" "
+        opt.contact, opt.contact.stiffness_per_area(scene.peak_pressure_mpa),
+        scene.peak_pressure_mpa);
+    os << "  <Contact>\n    <!-- gap at peak pressure between flat leaflets: "
+       << num(cp.gap_at_peak) << " mm (mvtwin: "
+       << num(opt.contact.alarm_mm -
+              scene.peak_pressure_mpa / opt.contact.stiffness_per_area(scene.peak_pressure_mpa))
+       << " mm) -->\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" "
           "type=\"contact potential\">\n"
        << "      <kc>" << num(cp.kc) << "</kc>\n      <p>" << num(cp.p) << "</p>\n      <R_in>"
        << num(cp.r_in) << "</R_in>\n      <R_out>" << num(cp.r_out) << "</R_out>\n      <R0_min>"

@@ -202,7 +202,7 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   // The automatic time stepper, FEBio's own bandwidth optimization, and the contact potential
   // with the parameters derived from mvtwin's penalty.
   EXPECT_EQ(count(feb, "<time_stepper type=\"default\">"), 1);
-  EXPECT_EQ(count(feb, "<max_retries>25</max_retries>"), 1);
+  EXPECT_EQ(count(feb, "<max_retries>10</max_retries>"), 1);  // 10 halvings: dt / 1024
   // Failed steps are retried at half the step: FEBio uses the cutback only with aggressiveness
   // 1 (with 0 it shortens a retried step by dt / 26 each time).
   EXPECT_EQ(count(feb, "<aggressiveness>1</aggressiveness>"), 1);
@@ -216,15 +216,15 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
                   "file=\"febio_nodes.txt\"/>"),
             1);
   EXPECT_EQ(count(feb, "type=\"contact potential\""), 1);
-  const FebioContactPotential cp =
-      febio_contact_potential(o.contact, o.contact.stiffness_per_area(scene.peak_pressure_mpa));
+  const FebioContactPotential cp = febio_contact_potential(
+      o.contact, o.contact.stiffness_per_area(scene.peak_pressure_mpa), scene.peak_pressure_mpa);
   const auto value_of = [&feb](const std::string& tag) {
     const size_t at = feb.find("<" + tag + ">");
     return at == std::string::npos ? -1.0 : std::stod(feb.substr(at + tag.size() + 2, 24));
   };
   EXPECT_NEAR(value_of("kc"), cp.kc, 1e-9 * cp.kc);
-  EXPECT_EQ(value_of("R_in"), o.contact.contact_mm);
-  EXPECT_EQ(value_of("R_out"), o.contact.alarm_mm);
+  EXPECT_EQ(value_of("R_in"), kFebioContactRangeFactor * o.contact.contact_mm);
+  EXPECT_EQ(value_of("R_out"), kFebioContactRangeFactor * o.contact.alarm_mm);
   EXPECT_EQ(value_of("R0_min"), o.contact.exclusion_mm * o.contact.exclusion_mm);
   EXPECT_EQ(count(feb, "sliding-elastic"), 0);
   EXPECT_EQ(count(feb, "<ElementData type=\"mat_axis\""), 2);
@@ -242,7 +242,9 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(elements_in("anterior") + elements_in("posterior") + elements_in("anterior_guarded") +
                 elements_in("posterior_guarded"),
             mesh.num_elements());
-  EXPECT_EQ(count(feb, "--"), 2) << "XML comments must not contain -- (only <!-- and -->)";
+  // Two comments (the header, the contact's gap): XML comments must not contain -- inside.
+  EXPECT_EQ(count(feb, "--"), 4) << "XML comments must not contain -- (only <!-- and -->)";
+  EXPECT_EQ(count(feb, "<!--"), 2);
   const int curves = count(feb, "<load_controller id=");
   // The integers following each occurrence of `key` (for example `lc="` -> 3).
   const auto numbers_after = [&feb](const std::string& key) {
@@ -286,39 +288,45 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   fs::remove_all(dir);
 }
 
-// FEBio's contact potential as exported: between two parallel surfaces at gap g the pressure
-// 2 pi g int_g^R_out f(r) dr (f: FEBio's PotentialDerive, integrated here numerically) is
-// mvtwin's penalty k (d_a - d_c) at the contact distance, zero from the alarm distance on, and
-// grows monotonically as the gap closes.
-TEST(FebioExport, ContactPotentialMatchesThePenaltyAtTheContactDistance) {
+// FEBio's contact potential, integrated between two parallel surfaces, is mvtwin's penalty
+// with the distances doubled: zero from R_out = 2 x the alarm distance, k (R_out - R_in) at R_in
+// = 2 x the contact distance, growing monotonically as the gap closes (through FEBio's wall
+// below R_in), and pressing with the peak pressure at gap_at_peak, for a low and a high peak.
+TEST(FebioExport, ContactPotentialIsMvtwinsPenaltyAtTwiceTheDistances) {
   SelfContactOptions c;
-  const double k = c.stiffness_per_area(0.016);
-  const FebioContactPotential cp = febio_contact_potential(c, k);
-  const double w = cp.r_out - cp.r_in;
-  const double c1 = 0.5 * cp.p * cp.kc / (w * std::pow(cp.r_in, cp.p + 1.0));
-  const double c2 = cp.kc / std::pow(cp.r_in, cp.p) - c1 * w * w;
-  auto f = [&](double r) {
-    if (r < cp.r_in) return cp.kc / std::pow(r, cp.p) - c2;
-    if (r < cp.r_out) return c1 * (r - cp.r_out) * (r - cp.r_out);
-    return 0.0;
-  };
-  auto pressure = [&](double g) {
-    const int steps = 20000;
-    double sum = 0.0;
-    const double h = (cp.r_out - g) / steps;
-    for (int i = 0; i < steps; ++i) sum += f(g + (i + 0.5) * h) * h;  // midpoint rule
-    return 2.0 * M_PI * g * sum;
-  };
-  EXPECT_NEAR(pressure(c.contact_mm), k * (c.alarm_mm - c.contact_mm),
-              1e-6 * k * (c.alarm_mm - c.contact_mm));
-  EXPECT_EQ(pressure(c.alarm_mm), 0.0);
-  double last = 0.0;
-  for (double g = 0.59; g > 0.05; g -= 0.01) {
-    const double pg = pressure(g);
-    EXPECT_GT(pg, last) << "gap " << g;
-    last = pg;
+  for (const double peak : {0.0107, 0.016, 0.025}) {
+    const double k = c.stiffness_per_area(peak);
+    const FebioContactPotential cp = febio_contact_potential(c, k, peak);
+    EXPECT_DOUBLE_EQ(cp.r_in, 2.0 * c.contact_mm);
+    EXPECT_DOUBLE_EQ(cp.r_out, 2.0 * c.alarm_mm);
+    const double w = cp.r_out - cp.r_in;
+    const double c1 = 0.5 * cp.p * cp.kc / (w * std::pow(cp.r_in, cp.p + 1.0));
+    const double c2 = cp.kc / std::pow(cp.r_in, cp.p) - c1 * w * w;
+    auto f = [&](double r) {
+      if (r < cp.r_in) return cp.kc / std::pow(r, cp.p) - c2;
+      if (r < cp.r_out) return c1 * (r - cp.r_out) * (r - cp.r_out);
+      return 0.0;
+    };
+    auto pressure = [&](double g) {
+      const int steps = 20000;
+      double sum = 0.0;
+      const double h = (cp.r_out - g) / steps;
+      for (int i = 0; i < steps; ++i) sum += f(g + (i + 0.5) * h) * h;  // midpoint rule
+      return 2.0 * M_PI * g * sum;
+    };
+    EXPECT_NEAR(pressure(cp.r_in), k * w, 1e-6 * k * w) << "peak " << peak;
+    EXPECT_NEAR(pressure(cp.gap_at_peak), peak, 1e-6 * peak) << "peak " << peak;
+    EXPECT_GT(cp.gap_at_peak, cp.r_in);
+    EXPECT_LT(cp.gap_at_peak, cp.r_out);
+    EXPECT_EQ(pressure(cp.r_out), 0.0);
+    double last = 0.0;
+    for (double g = cp.r_out - 0.01; g > 0.05; g -= 0.01) {
+      const double pg = pressure(g);
+      EXPECT_GT(pg, last) << "gap " << g;
+      last = pg;
+    }
+    EXPECT_DOUBLE_EQ(cp.r0_min, c.exclusion_mm * c.exclusion_mm);
   }
-  EXPECT_DOUBLE_EQ(cp.r0_min, c.exclusion_mm * c.exclusion_mm);
 }
 
 // Each chorda's springs: one per cross-section node with equal shares, rest lengths shifted so

@@ -41,21 +41,30 @@ namespace mvtwin::forward {
 std::vector<std::pair<double, double>> febio_spring_curve(double initial, double rest,
                                                           const ChordaLaw* law, double k);
 
-/// FEBio's "contact potential" (FEBioMech/FEContactPotential.cpp) between the two leaflets with
-/// mvtwin's penalty: a repulsion f(r) between integration points of the two surfaces, weighted by
-/// both areas, f = c1 (r - R_out)^2 for R_in <= r < R_out and kc / r^p - c2 closer (a wall).
-/// Between two parallel surfaces at gap g it gives the pressure 2 pi g int_g^R_out f(r) dr:
-/// zero from the alarm distance (R_out) and equal to mvtwin's k (d_a - d_c) at the contact
-/// distance (R_in), where the wall takes over.
+/// FEBio's "contact potential" (FEBioMech/FEContactPotential.cpp) between the two leaflets: a
+/// repulsion f(r) between integration points of the two surfaces, weighted by both areas,
+/// f = c1 (r - R_out)^2 for R_in <= r < R_out and kc / r^p - c2 closer (a wall). Between two
+/// parallel surfaces at gap g it gives the pressure 2 pi g int_g^R_out f(r) dr.
+///   - mvtwin's penalty with its distances scaled by kFebioContactRangeFactor: R_in = 2 x the
+///     contact distance, R_out = 2 x the alarm distance, and the pressure k (R_out - R_in) at
+///     R_in, with mvtwin's stiffness per area k.
+///   - Why not mvtwin's own distances (written before): the potential acts between points, not
+///     surfaces. With R_out = the alarm distance (0.6 mm), about the spacing of the integration
+///     points at the paper's grid, FEBio's static solve stalled once the leaflets touched
+///     (virtual patients 1 and 3, issue 16); with twice the range patient 1 ran to the end.
+///   - The cost: the leaflets coapt farther apart. gap_at_peak is where the pressure equals the
+///     peak pressure (0.86 mm at the defaults, against mvtwin's 0.45 mm).
 struct FebioContactPotential {
   double kc = 0, p = 4, r_in = 0, r_out = 0;
+  double gap_at_peak = 0;  ///< gap between flat surfaces at the peak pressure, mm
   /// Surface points closer than this in the reference configuration never pair (mvtwin's
   /// neighbour exclusion). FEBio 4 compares it with the squared reference distance, so this is
   /// exclusion_mm^2 (mm^2).
   double r0_min = 0;
 };
+inline constexpr double kFebioContactRangeFactor = 2.0;
 FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
-                                              double stiffness_per_area);
+                                              double stiffness_per_area, double peak_pressure_mpa);
 
 /// One spring of a chorda in FEBio: from a node of its insertion cross-section to its papillary
 /// tip. Each of the cross-section's k nodes gets one spring of force share 1/k whose force curve
