@@ -80,6 +80,7 @@ FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
     (g * std::pow(cp.r_out - g, 3) / (cp.r_in * w * w * w) > target ? lo : hi) = g;
   }
   cp.gap_at_peak = 0.5 * (lo + hi);
+  cp.mvtwin_gap_at_peak = contact.alarm_mm - peak_pressure_mpa / stiffness_per_area;
   return cp;
 }
 
@@ -236,11 +237,13 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "id of mvtwin's nodes 0, 1, ... in order); an automatic time stepper that halves failed\n"
      << "steps (aggressiveness 1, 10 retries: dt / 1024); leaflet contact as FEBio's contact\n"
      << "potential between the leaflets' atrial, ventricular and rim (free edge, commissural)\n"
-     << "faces, with mvtwin's minimum distance as R_in, twice its alarm distance as R_out (the\n"
-     << "potential acts between integration points, and a range near their spacing made the\n"
-     << "static solve stall in contact), kc such that it presses with the peak pressure at\n"
-     << "mvtwin's coaptation gap, and mvtwin's 4 mm neighbour exclusion; each chorda pulls its "
-        "whole\n"
+     << "faces: mvtwin's penalty law with its distances doubled (R_in = 2 x the contact distance,\n"
+     << "R_out = 2 x the alarm distance, pressure k (R_out - R_in) at R_in), because the "
+        "potential\n"
+     << "acts between integration points and a range near their spacing made the static solve\n"
+     << "stall in contact; the leaflets therefore coapt farther apart than in mvtwin (the gaps at\n"
+     << "peak pressure are in the comment beside the contact); mvtwin's 4 mm neighbour\n"
+     << "exclusion; each chorda pulls its whole\n"
      << "cross-section, one spring of 1/k of the force per node, whose curve reads the node's\n"
      << "elongation as the mean point's (mvtwin pulls the mean point: equal while the section\n"
      << "does not rotate). FEBio 4 compares R0_min with the squared reference distance, hence\n"
@@ -492,9 +495,7 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
         opt.contact, opt.contact.stiffness_per_area(scene.peak_pressure_mpa),
         scene.peak_pressure_mpa);
     os << "  <Contact>\n    <!-- gap at peak pressure between flat leaflets: "
-       << num(cp.gap_at_peak) << " mm (mvtwin: "
-       << num(opt.contact.alarm_mm -
-              scene.peak_pressure_mpa / opt.contact.stiffness_per_area(scene.peak_pressure_mpa))
+       << num(cp.gap_at_peak) << " mm (mvtwin: " << num(cp.mvtwin_gap_at_peak)
        << " mm) -->\n    <contact name=\"leaflets\" surface_pair=\"leaflets\" "
           "type=\"contact potential\">\n"
        << "      <kc>" << num(cp.kc) << "</kc>\n      <p>" << num(cp.p) << "</p>\n      <R_in>"

@@ -316,6 +316,8 @@ TEST(FebioExport, ContactPotentialIsMvtwinsPenaltyAtTwiceTheDistances) {
     };
     EXPECT_NEAR(pressure(cp.r_in), k * w, 1e-6 * k * w) << "peak " << peak;
     EXPECT_NEAR(pressure(cp.gap_at_peak), peak, 1e-6 * peak) << "peak " << peak;
+    EXPECT_NEAR(k * (c.alarm_mm - cp.mvtwin_gap_at_peak), peak, 1e-12 * peak);
+    EXPECT_GT(cp.gap_at_peak, cp.mvtwin_gap_at_peak);  // the cost of the doubled range
     EXPECT_GT(cp.gap_at_peak, cp.r_in);
     EXPECT_LT(cp.gap_at_peak, cp.r_out);
     EXPECT_EQ(pressure(cp.r_out), 0.0);

@@ -56,7 +56,8 @@ std::vector<std::pair<double, double>> febio_spring_curve(double initial, double
 ///     peak pressure (0.86 mm at the defaults, against mvtwin's 0.45 mm).
 struct FebioContactPotential {
   double kc = 0, p = 4, r_in = 0, r_out = 0;
-  double gap_at_peak = 0;  ///< gap between flat surfaces at the peak pressure, mm
+  double gap_at_peak = 0;         ///< gap between flat surfaces at the peak pressure, mm
+  double mvtwin_gap_at_peak = 0;  ///< the same for mvtwin's penalty: k (d_a - g) = p, mm
   /// Surface points closer than this in the reference configuration never pair (mvtwin's
   /// neighbour exclusion). FEBio 4 compares it with the squared reference distance, so this is
   /// exclusion_mm^2 (mm^2).
