@@ -24,6 +24,7 @@
 #include "mvtwin/inverse/clip_prediction.h"
 #include "output_files.h"
 #include "progress.h"
+#include "report.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -48,31 +49,14 @@ std::string describe(const std::vector<inverse::ClipSite>& sites) {
 }
 
 json quality_json(const inverse::ClosureQuality& q) {
-  return {{"converged", q.converged},
-          {"reason", q.reason},
-          {"orifice_area_mm2", q.orifice_area_mm2},
-          {"annulus_area_mm2", q.annulus_area_mm2},
-          {"orifice_components", q.orifice_components},
-          {"component_areas_mm2", q.component_areas_mm2},
-          {"coaptation_length_mm", q.coaptation.length_mm},
-          {"coaptation_max_mm", q.coaptation.max_mm},
-          {"coapting_fraction", q.coaptation.coapting_fraction},
-          {"clip_gap_end_mm", q.clip_gap_mm}};
+  json j = {{"converged", q.converged}, {"reason", q.reason}, {"clip_gap_end_mm", q.clip_gap_mm}};
+  if (q.converged) j.update(orifice_json(q.orifice));
+  return j;
 }
 
 std::string quality_line(const inverse::ClosureQuality& q) {
   if (!q.converged) return "simulation failed: " + q.reason;
-  std::string s = "orifice " + f1(q.orifice_area_mm2) + " mm^2 (" +
-                  std::to_string(q.orifice_components) + " opening" +
-                  (q.orifice_components == 1 ? "" : "s");
-  if (q.component_areas_mm2.size() > 1) {
-    s += ":";
-    for (double a : q.component_areas_mm2) s += " " + f1(a);
-  }
-  s += "), coaptation " + f1(q.coaptation.length_mm) + " mm over " +
-       std::to_string(static_cast<int>(std::lround(100 * q.coaptation.coapting_fraction))) +
-       " % of the line";
-  return s;
+  return orifice_line(q.orifice);
 }
 
 /// The simulation options a calibration used (its options record), else the defaults.

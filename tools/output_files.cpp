@@ -8,6 +8,8 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/version.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "report.h"
 
 namespace mvtwin::tools {
 
@@ -25,6 +27,40 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
   rec.provenance.seed = p.provenance.seed;
   rec.provenance.source = assumed_note(p);
   write_simulation_file(out, rec);
+}
+
+std::filesystem::path summary_path(const std::filesystem::path& result_file) {
+  return std::filesystem::path(result_file).replace_extension(".json");
+}
+
+nlohmann::json simulation_summary_json(const forward::ClosureResult& r,
+                                       const forward::ClosureOptions& o, const ValveParameters& par,
+                                       const Patient& p, const std::string& command_line) {
+  nlohmann::json parameters, options;
+  par.for_each([&](const std::string& n, double v, const char*) { parameters[n] = v; });
+  for (const auto& [k, v] : forward::describe_result_options(o)) options[k] = v;
+  nlohmann::json j = {{"patient_id", p.id},
+                      {"synthetic", p.synthetic},
+                      {"mvtwin_version", kVersion},
+                      {"command", command_line},
+                      {"created_utc", utc_now_iso8601()},
+                      {"seed", p.provenance.seed},
+                      {"status", r.summary.converged() ? "converged" : "failed"},
+                      {"outcome", std::string(outcome_name(r.summary.outcome))},
+                      {"reason", r.summary.reason},
+                      {"wall_s", r.summary.wall_s},
+                      {"steps", r.summary.steps},
+                      {"parameters", parameters},
+                      {"options", options}};
+  if (r.orifice) {
+    j.update(orifice_json(*r.orifice));
+  } else {
+    for (const char* k : {"aroa_mm2", "eroa_mm2", "openings_mm2", "mr_grade",
+                          "coaptation_length_mm", "coaptation_depth_mm"})
+      j[k] = nullptr;
+  }
+  if (!r.clip_gap_end_mm.empty()) j["clip_gap_end_mm"] = r.clip_gap_end_mm;
+  return j;
 }
 
 std::string assumed_note(const Patient& p) {

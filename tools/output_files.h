@@ -19,6 +19,18 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
                              const ValveParameters& parameters, const Patient& patient,
                              const std::string& patient_file, const std::string& command_line);
 
+/// The JSON summary written beside a result file: the same path with the extension .json.
+std::filesystem::path summary_path(const std::filesystem::path& result_file);
+
+/// What a script reads of a simulation: patient, provenance (version, command, time, seed),
+/// status, parameters, the options that change results, timing, and the closed valve's
+/// regurgitant orifice at the top level (aroa_mm2, eroa_mm2, openings_mm2, mr_grade,
+/// coaptation_length_mm, ...; null when it was not measured).
+nlohmann::json simulation_summary_json(const forward::ClosureResult& result,
+                                       const forward::ClosureOptions& options,
+                                       const ValveParameters& parameters, const Patient& patient,
+                                       const std::string& command_line);
+
 /// "input ASSUMED (...): names" for a patient with landmarks estimated rather than observed, ""
 /// otherwise: recorded in every result file made from it.
 std::string assumed_note(const Patient& patient);

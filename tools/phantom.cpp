@@ -1,5 +1,6 @@
 // mvtwin phantom (tools/phantom.h).
 #include "phantom.h"
+#include "report.h"
 
 #include <iostream>
 
@@ -36,6 +37,8 @@ int run_phantom(const PhantomArgs& a) {
     std::cout << "simulating the closing frames of " << p.id << " ..." << std::endl;
     forward::simulate_observed_closure(&p, vo);
     std::cout << p.truth->closed_frames << "\n";
+    if (p.truth->closed_orifice)
+      std::cout << "closed valve: " << orifice_line(*p.truth->closed_orifice) << "\n";
   }
   write_patient(a.out, p);
   std::cout << "wrote " << a.out << ": virtual patient " << p.id << " ("

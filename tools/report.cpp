@@ -47,9 +47,10 @@ void print_simulation_record(const SimulationRecord& r, std::ostream& os) {
   for (size_t i = 0; i < r.time_s.size(); ++i) {
     os << "  t = " << fixed(r.time_s[i], 2) << " s (observed " << fixed(r.observed_time_s[i], 3)
        << " s): tips " << fixed(r.anterior_tip_mm[i]) << " / " << fixed(r.posterior_tip_mm[i])
-       << " mm, orifice " << fixed(r.orifice_area_mm2[i], 1) << " of "
+       << " mm, seen through " << fixed(r.orifice_area_mm2[i], 1) << " of "
        << fixed(r.annulus_area_mm2[i], 0) << " mm^2\n";
   }
+  if (r.orifice) os << "closed    " << orifice_line(*r.orifice) << "\n";
   double smax = 0, vmax = 0;
   for (Eigen::Index e = 0; e < r.element_strain.size(); ++e) {
     smax = std::max(smax, r.element_strain[e]);
@@ -143,7 +144,48 @@ void print_patient(const Patient& p, std::ostream& os) {
     });
     os << "\n";
     os << "closed    " << t.closed_frames << "\n";
+    if (t.closed_orifice) os << "          true " << orifice_line(*t.closed_orifice) << "\n";
   }
+}
+
+std::string orifice_line(const RegurgitantOrifice& o) {
+  std::string s = "regurgitant orifice " + fixed(o.aroa_mm2, 1) + " mm^2 (EROA " +
+                  fixed(o.eroa_mm2, 1) + " mm^2: " + std::string(mr_grade_name(o.grade)) + " MR";
+  if (!o.openings.empty()) {
+    s += "; " + std::to_string(o.openings.size()) + " opening" +
+         (o.openings.size() == 1 ? "" : "s") + ":";
+    for (const Opening& x : o.openings)
+      s += " " + fixed(x.area_mm2, 1) + " at " + fixed(x.begin, 2) + "-" + fixed(x.end, 2);
+  }
+  s += "), coaptation " + fixed(o.coaptation_length_mm, 1) + " mm long";
+  if (std::isfinite(o.coaptation_depth_mm))
+    s += ", " + fixed(o.coaptation_depth_mm, 1) + " mm below the annulus";
+  return s + " (sealed within " + fixed(o.options.seal_mm, 2) + " mm)";
+}
+
+nlohmann::json orifice_json(const RegurgitantOrifice& o) {
+  nlohmann::json openings = nlohmann::json::array(), areas = nlohmann::json::array();
+  for (const Opening& x : o.openings) {
+    areas.push_back(x.area_mm2);
+    openings.push_back({{"area_mm2", x.area_mm2},
+                        {"begin", x.begin},
+                        {"end", x.end},
+                        {"length_mm", x.length_mm},
+                        {"max_gap_mm", x.max_gap_mm}});
+  }
+  auto finite_or_null = [](double v) {
+    return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+  };
+  return {{"aroa_mm2", o.aroa_mm2},
+          {"eroa_mm2", o.eroa_mm2},
+          {"openings_mm2", areas},
+          {"openings", openings},
+          {"mr_grade", std::string(mr_grade_name(o.grade))},
+          {"coaptation_length_mm", o.coaptation_length_mm},
+          {"coaptation_depth_mm", finite_or_null(o.coaptation_depth_mm)},
+          {"coapting_fraction", o.coapting_fraction},
+          {"seal_mm", o.options.seal_mm},
+          {"contraction_coefficient", o.options.contraction_coefficient}};
 }
 
 void print_closure(const forward::ClosureResult& r, std::ostream& os) {
@@ -151,19 +193,19 @@ void print_closure(const forward::ClosureResult& r, std::ostream& os) {
   for (const auto& s : r.samples) {
     os << "  t = " << fixed(s.time_s, 2) << " s: tips to annulus plane, anterior "
        << fixed(s.anterior_tip_mm) << " mm, posterior " << fixed(s.posterior_tip_mm)
-       << " mm; orifice " << fixed(s.orifice_area_mm2, 1) << " of " << fixed(s.annulus_area_mm2, 0)
-       << " mm^2 (" << s.orifice_components << " opening" << (s.orifice_components == 1 ? "" : "s")
-       << "); closest contact " << fixed(s.min_contact_distance_mm, 2) << " mm\n";
+       << " mm; seen through " << fixed(s.orifice_area_mm2, 1) << " of "
+       << fixed(s.annulus_area_mm2, 0) << " mm^2 (" << s.orifice_components << " opening"
+       << (s.orifice_components == 1 ? "" : "s") << "); closest contact "
+       << fixed(s.min_contact_distance_mm, 2) << " mm\n";
   }
   if (!r.samples.empty()) {
     const auto& a = r.samples.front();
     const auto& b = r.samples.back();
-    os << "closure: regurgitant orifice " << fixed(a.orifice_area_mm2, 1) << " -> "
-       << fixed(b.orifice_area_mm2, 1) << " mm^2 ("
-       << fixed(100.0 * b.orifice_area_mm2 / std::max(b.annulus_area_mm2, 1e-9), 1)
-       << " % of the annulus opening); closest contact "
-       << fixed(r.summary.min_contact_distance_mm, 2) << " mm\n";
+    os << "closure: opening seen from the atrium along the annulus normal "
+       << fixed(a.orifice_area_mm2, 1) << " -> " << fixed(b.orifice_area_mm2, 1)
+       << " mm^2; closest contact " << fixed(r.summary.min_contact_distance_mm, 2) << " mm\n";
   }
+  if (r.orifice) os << "closed valve: " << orifice_line(*r.orifice) << "\n";
   for (size_t c = 0; c < r.clip_gap_clipped_mm.size(); ++c) {
     os << "clip " << c + 1 << ": atrial surfaces " << fixed(r.clip_gap_clipped_mm[c], 2)
        << " mm apart after clipping";

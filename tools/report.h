@@ -4,6 +4,8 @@
 #include <ostream>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/simulation_file.h"
@@ -24,6 +26,13 @@ void print_patient(const Patient& patient, std::ostream& os);
 
 /// mvtwin info of a simulation file: provenance, status, settings, samples, end state.
 void print_simulation_record(const SimulationRecord& record, std::ostream& os);
+
+/// One line on a closed valve's regurgitant orifice: AROA, EROA and grade, the openings (area and
+/// where along the coaptation line), coaptation length and depth, the seal distance.
+std::string orifice_line(const RegurgitantOrifice& orifice);
+/// The same for a JSON summary: aroa_mm2, eroa_mm2, openings_mm2 (largest first), openings,
+/// mr_grade, coaptation_length_mm, coaptation_depth_mm (null when nothing coapts), ...
+nlohmann::json orifice_json(const RegurgitantOrifice& orifice);
 
 /// What mvtwin simulate prints after a closure: status, samples, orifice, clips.
 void print_closure(const forward::ClosureResult& result, std::ostream& os);

@@ -13,6 +13,7 @@
 #include "report.h"
 
 namespace mvtwin::tools {
+namespace fs = std::filesystem;
 
 int run_simulate(const SimulateArgs& a) {
   const Patient p = read_patient_for_run(a.file, a.use_detected);
@@ -25,7 +26,14 @@ int run_simulate(const SimulateArgs& a) {
   if (p.truth) par = p.truth->parameters;
   for (const std::string& s : a.sets) forward::apply_setting(s, &o, &par);
   if (o.record_every == 0) o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
-  if (!a.out.empty()) refuse_overwrite(a.out, a.force);
+  if (!a.out.empty() && fs::path(a.out).extension() == ".json")
+    throw Error("--out " + a.out + ": the result is an HDF5 file (its JSON summary is written "
+                "beside it with the extension .json)");
+  const fs::path summary_json = a.out.empty() ? fs::path() : summary_path(a.out);
+  if (!a.out.empty()) {
+    refuse_overwrite(a.out, a.force);
+    refuse_overwrite(summary_json, a.force);
+  }
   std::cout << "simulating " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << ": " << o.model.ures
             << " x " << o.model.vres << " grid, " << o.model.layers << " layer(s), dt " << o.dt
             << " s, contact " << (o.contact.enabled ? "on" : "off") << std::endl;
@@ -34,7 +42,9 @@ int run_simulate(const SimulateArgs& a) {
   print_closure(r, std::cout);
   if (!a.out.empty()) {
     write_simulation_result(a.out, r, o, par, p, a.file, a.command_line);
-    std::cout << "wrote " << a.out << " (mvtwin info " << a.out << ")\n";
+    write_json_file(summary_json, simulation_summary_json(r, o, par, p, a.command_line));
+    std::cout << "wrote " << a.out << " (mvtwin info " << a.out << ") and " << summary_json.string()
+              << "\n";
   }
   if (!a.vtk.empty()) {
     const auto files = forward::export_closure_vtk(r, a.vtk);
@@ -58,6 +68,9 @@ void register_simulate(CLI::App& app, Context& ctx) {
       "settle_mm=0 stops when the pressure peaks, as the paper did: 1.3-3.4x faster, and\n"
       "0.04-0.52 mm (mean) from rest on virtual patients 1-5 (docs/forward-status.md).\n"
       "Uses the patient's hidden parameters when it is synthetic, else the defaults.\n"
+      "Beside the result, NAME.json: status, settings and the closed valve's regurgitant\n"
+      "orifice (aroa_mm2, eroa_mm2, openings_mm2, mr_grade, coaptation_length_mm;\n"
+      "docs/regurgitant-orifice.md).\n"
       "Exit status 4 when the simulation fails (the result file says why).");
   auto a = std::make_shared<SimulateArgs>();
   cmd->add_option("FILE", a->file, "patient file (HDF5)")->required();

@@ -141,15 +141,12 @@ void register_study_cohort(CLI::App* study, Context& ctx) {
   cmd->add_option("--restlength-tolerance", a->restlength_tolerance,
                   "a fitted rest-length factor this close to the truth counts as recovered")
       ->default_val(a->restlength_tolerance);
-  cmd->add_option("--satisfactory-orifice", a->rating.satisfactory_orifice_mm2,
-                  "rating threshold, mm^2")
-      ->default_val(a->rating.satisfactory_orifice_mm2);
-  cmd->add_option("--satisfactory-coaptation", a->rating.satisfactory_coaptation_mm,
-                  "rating threshold, mm")
-      ->default_val(a->rating.satisfactory_coaptation_mm);
-  cmd->add_option("--unsatisfactory-orifice", a->rating.unsatisfactory_orifice_mm2,
-                  "rating threshold, mm^2")
-      ->default_val(a->rating.unsatisfactory_orifice_mm2);
+  cmd->add_option("--match-eroa", a->rating.match_mm2,
+                  "rating: a simulated EROA this close to the observed one (mm^2) is satisfactory")
+      ->default_val(a->rating.match_mm2);
+  cmd->add_option("--match-fraction", a->rating.match_fraction,
+                  "rating: ... or this fraction of the observed EROA, if larger")
+      ->default_val(a->rating.match_fraction);
   cmd->add_flag(
       "--quick", a->quick,
       "the test size: 5 patients, default parameters, a coarse model (flags given still apply)");

@@ -10,6 +10,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
+#include "orifice_io.h"
 
 namespace mvtwin {
 namespace {
@@ -244,6 +245,7 @@ void write_truth(const h5::Location& root, const VirtualTruth& truth) {
          "pose");
   const h5::Location a = g.create_group("anatomy", /*track_order=*/true);
   for (const auto& [name, v] : truth.anatomy) a.write_scalar(name, v, nullptr);
+  if (truth.closed_orifice) h5::write_orifice(g, *truth.closed_orifice, nullptr, nullptr);
 }
 
 VirtualTruth read_truth(const h5::Location& root, std::vector<int>* legacy_ruptured) {
@@ -255,6 +257,10 @@ VirtualTruth read_truth(const h5::Location& root, std::vector<int>* legacy_ruptu
     g.fail("", e.what());
   }
   t.closed_frames = g.attr_string("closed_frames");
+  if (g.exists("orifice")) {
+    std::optional<LeafletGrid> la, lv;
+    t.closed_orifice = h5::read_orifice(g.open_group("orifice"), &la, &lv);
+  }
   const h5::Location p = g.open_group("parameters");
   t.parameters.for_each([&](const std::string& name, double& v, const char*) {
     v = p.read_scalar(name);

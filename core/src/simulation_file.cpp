@@ -5,6 +5,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
+#include "orifice_io.h"
 #include "result_header.h"
 
 namespace mvtwin {
@@ -91,6 +92,7 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
     fin.write("stress_von_mises",
               std::vector<double>(r.element_stress_mpa.data(), r.element_stress_mpa.data() + E),
               {E}, units::kStress);
+    if (r.orifice) h5::write_orifice(root, *r.orifice, &r.orifice_surface, &r.orifice_lv_surface);
   });
 }
 
@@ -156,6 +158,13 @@ SimulationRecord read_simulation_file(const std::filesystem::path& path) {
       if (r.mesh.T(e, k) < 0 || r.mesh.T(e, k) >= N)
         root.fail("final/tets", "node index out of range in element " + std::to_string(e));
     }
+  }
+  if (root.exists("orifice")) {
+    std::optional<LeafletGrid> atrial, ventricular;
+    r.orifice = h5::read_orifice(root.open_group("orifice"), &atrial, &ventricular);
+    if (!atrial || !ventricular) root.fail("orifice", "needs la_surface and lv_surface");
+    r.orifice_surface = std::move(*atrial);
+    r.orifice_lv_surface = std::move(*ventricular);
   }
   return r;
 }

@@ -383,6 +383,16 @@ StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eige
   return {};
 }
 
+std::pair<LeafletGrid, LeafletGrid> ClosureIntegrator::leaflet_surfaces(const ValveState& state,
+                                                                        int refine) const {
+  const AtrialSampler fine = refine <= 1
+                                 ? sampler_
+                                 : make_atrial_sampler(scene_.model, options_.model.ures * refine,
+                                                       (options_.model.vres - 1) * refine + 1);
+  return {sample_atrial(fine, state.x),
+          sample_atrial(ventricular_sampler(scene_.model, fine), state.x)};
+}
+
 ClosureSample ClosureIntegrator::sample(double tau, const ValveState& state) const {
   const int U = options_.model.ures;
   ClosureSample s;

@@ -109,6 +109,7 @@ const std::map<std::string, Field>& fields() {
     integer("max_step_halvings", [](ClosureOptions& o) -> int& { return o.max_step_halvings; });
     integer("threads", [](ClosureOptions& o) -> int& { return o.threads; });
     integer("record_every", [](ClosureOptions& o) -> int& { return o.record_every; });
+    integer("orifice_refine", [](ClosureOptions& o) -> int& { return o.orifice_refine; });
     boolean("single_precision_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.single_precision_preconditioner; });
     boolean("single_precision_factorization",

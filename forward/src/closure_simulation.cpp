@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <tuple>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/forward/closure_integrator.h"
@@ -64,6 +65,7 @@ bool ClosureOptions::is_valid(std::string* error) const {
   if (settle_newton_iterations < 1 || settle_newton_iterations > 100)
     return bad("settle_newton_iterations must be in 1..100");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
+  if (orifice_refine < 0 || orifice_refine > 8) return bad("orifice_refine must be in 0..8");
   if (max_step_halvings < 0 || max_step_halvings > 10)
     return bad("max_step_halvings must be in 0..10");
   if (threads < 1 || threads > 2) return bad("threads must be 1 or 2");
@@ -79,10 +81,11 @@ std::string ClosureSummary::brief_report() const {
      << " dofs, " << elements << " elements; " << wall_s << " s (assembly " << assembly_s
      << ", solve " << solve_s << " of which factorizing " << factorize_s << " (analysis "
      << analyze_s << ") and preconditioning " << precondition_s << ", contact " << contact_s
-     << ", other " << other_s << "); linear solver: " << factorizations << " factorizations, "
-     << analyses << " analyses (" << orderings_reused << " reusing an ordering), " << pcg_iterations
-     << " PCG iterations, " << preconditioner_applications << " preconditioner applications, "
-     << warm_starts << " warm starts (" << warm_accepted << " answered by the guesses alone), "
+     << ", other " << other_s << " of which the orifice " << orifice_s
+     << "); linear solver: " << factorizations << " factorizations, " << analyses << " analyses ("
+     << orderings_reused << " reusing an ordering), " << pcg_iterations << " PCG iterations, "
+     << preconditioner_applications << " preconditioner applications, " << warm_starts
+     << " warm starts (" << warm_accepted << " answered by the guesses alone), "
      << unconverged_solves << " unconverged, " << double_fallbacks
      << " single-precision factorizations redone in double; contact: " << contacts
      << " pairs at the end (max " << max_contacts << ", closest " << min_contact_distance_mm
@@ -113,7 +116,7 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
   ValveState state = integrator.initial_state();
   const double T = scene.duration();
   int steps = 0, halvings_total = 0, rejected = 0, settle_steps = 0;
-  double settle_s = 0.0, last_motion_mm = 0.0;
+  double settle_s = 0.0, last_motion_mm = 0.0, orifice_s = 0.0;
   auto finish = [&](Outcome outcome, std::string reason) {
     result.positions = state.x;
     integrator.finish(&result);
@@ -126,6 +129,7 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
     sum.settle_steps = settle_steps;
     sum.settle_s = settle_s;
     sum.last_step_motion_mm = last_motion_mm;
+    sum.orifice_s = orifice_s;
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
@@ -220,11 +224,23 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
   result.samples.push_back(integrator.sample(tau, state));
   for (int c = 0; c < integrator.num_clips(); ++c)
     result.clip_gap_end_mm.push_back(integrator.clip_gap(c, state.x));
+  if (opt.orifice_refine > 0 && result.samples.back().la_surface.points().allFinite()) {
+    const auto t_orifice = Clock::now();
+    std::tie(result.orifice_surface, result.orifice_lv_surface) =
+        integrator.leaflet_surfaces(state, opt.orifice_refine);
+    OrificeOptions oo;
+    oo.seal_mm = orifice_seal_mm(opt.contact);
+    result.orifice =
+        measure_regurgitant_orifice(result.orifice_surface, oo, &result.orifice_lv_surface);
+    orifice_s = seconds_since(t_orifice);
+  }
   finish(Outcome::kConverged, "");
   return result;
 }
 
 }  // namespace
+
+double orifice_seal_mm(const SelfContactOptions& contact) { return contact.alarm_mm; }
 
 SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOptions& o,
                                         const ValveParameters& p) {
@@ -268,7 +284,8 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"final_update_norm", s.final_update_norm},
                  {"interpenetrating_nodes", s.interpenetrating_nodes},
                  {"guarded_elements", s.guarded_elements},
-                 {"interpenetration_checked", s.interpenetration_checked}};
+                 {"interpenetration_checked", s.interpenetration_checked},
+                 {"orifice_s", s.orifice_s}};
   for (const ClosureSample& c : r.samples) {
     rec.time_s.push_back(c.time_s);
     rec.observed_time_s.push_back(c.observed_time_s);
@@ -285,6 +302,11 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
     rec.final_positions.row(i) = r.positions.segment<3>(3 * i).transpose();
   rec.element_strain = r.element_strain;
   rec.element_stress_mpa = r.element_stress_mpa;
+  rec.orifice = r.orifice;
+  if (r.orifice) {
+    rec.orifice_surface = r.orifice_surface;
+    rec.orifice_lv_surface = r.orifice_lv_surface;
+  }
   return rec;
 }
 

@@ -625,6 +625,19 @@ AtrialSampler make_atrial_sampler(const ValveModel& m, int ures, int vres) {
   return out;
 }
 
+AtrialSampler ventricular_sampler(const ValveModel& m, const AtrialSampler& atrial) {
+  AtrialSampler out = atrial;
+  const int L = m.options.layers;
+  for (size_t k = 0; k < out.nodes.size(); ++k) {
+    for (int j = 0; j < 3; ++j) out.nodes[k][j] = m.node(atrial.nodes[k][j], L);
+    if (m.mesh.order == TetOrder::kQuadratic) {
+      for (int j = 0; j < 3; ++j)
+        out.mids[k][j] = m.mesh.mid_node(out.nodes[k][j], out.nodes[k][(j + 1) % 3]);
+    }
+  }
+  return out;
+}
+
 LeafletGrid sample_atrial(const AtrialSampler& sp, const Eigen::VectorXd& x) {
   LeafletGrid::Points P(static_cast<Eigen::Index>(sp.nodes.size()), 3);
   for (size_t k = 0; k < sp.nodes.size(); ++k) {

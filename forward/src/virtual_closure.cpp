@@ -99,6 +99,7 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
      << " mm Gaussian noise along the normals; later frames unobserved; simulation: "
      << r.summary.brief_report();
   p->truth->closed_frames = os.str();
+  p->truth->closed_orifice = r.orifice;
   seq.validate(("observed closure of '" + p->id + "'").c_str());
 }
 

@@ -55,16 +55,7 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   ClosureQuality q;
   q.converged = r.summary.converged();
   q.reason = r.summary.reason;
-  if (r.samples.empty()) return q;
-  const forward::ClosureSample& s = r.samples.back();
-  if (!s.la_surface.points().allFinite()) return q;
-  const ClosureMeasures m = measure_closure(s.la_surface.points().topRows(s.la_surface.ures()),
-                                            s.la_surface.triangulate(), 0.25);
-  q.orifice_area_mm2 = m.orifice_area_mm2;
-  q.annulus_area_mm2 = m.annulus_area_mm2;
-  q.orifice_components = m.orifice_components;
-  q.component_areas_mm2 = m.component_areas_mm2;
-  q.coaptation = measure_coaptation(s.la_surface);
+  if (r.orifice) q.orifice = *r.orifice;
   q.clip_gap_mm = r.clip_gap_end_mm;
   return q;
 }
@@ -108,7 +99,7 @@ std::vector<std::vector<ClipSite>> clip_candidates(bool pairs) {
 void rank_by_residual_orifice(std::vector<ClipScenario>* s) {
   std::stable_sort(s->begin(), s->end(), [](const ClipScenario& a, const ClipScenario& b) {
     if (a.quality.converged != b.quality.converged) return a.quality.converged;
-    return a.quality.orifice_area_mm2 < b.quality.orifice_area_mm2;
+    return a.quality.orifice.eroa_mm2 < b.quality.orifice.eroa_mm2;
   });
 }
 

@@ -65,12 +65,14 @@ forward::ClosureOptions ClosureObjective::simulation_options() const {
   } else {
     o.record_every = 0;  // the end state only
   }
+  o.orifice_refine = 0;  // a candidate is compared by its surface only
   return o;
 }
 
 forward::ClosureResult ClosureObjective::simulate(const Eigen::VectorXd& x) const {
   forward::ClosureOptions o = simulation_options();
   o.record_every = options_.simulation.record_every;
+  o.orifice_refine = options_.simulation.orifice_refine;
   return forward::simulate_closure(patient_->sequence, space_.apply(x), o);
 }
 

@@ -207,10 +207,10 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       sc.wall_s = detail::seconds_since(t);
       const inverse::ClosureQuality& q = r.quality;
       if (!q.converged) throw Error(q.reason);
-      sc.orifice_mm2 = q.orifice_area_mm2;
-      sc.coaptation_mm = q.coaptation.length_mm;
-      sc.coapting_fraction = q.coaptation.coapting_fraction;
-      sc.orifice_components = q.orifice_components;
+      sc.orifice_mm2 = q.orifice.aroa_mm2;
+      sc.coaptation_mm = q.orifice.coaptation_length_mm;
+      sc.coapting_fraction = q.orifice.coapting_fraction;
+      sc.orifice_components = static_cast<int>(q.orifice.openings.size());
       for (double g : q.clip_gap_mm) sc.max_clip_gap_mm = std::max(sc.max_clip_gap_mm, g);
       extra = {{"id", p->id},
                {"pathology", p->truth ? std::string(pathology_name(p->truth->pathology))
@@ -267,7 +267,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       if (s < 0) return std::string("-");
       const auto& sc = cp.scenarios[static_cast<std::size_t>(s)];
       if (sc.status != "ok") return std::string("-");
-      return o.rating.rate(sc.orifice_mm2, sc.coaptation_mm, sc.coapting_fraction);
+      return o.rating.rate(0.611 * sc.orifice_mm2, std::nan(""));
     };
     cp.rating_before = rate(0);
     cp.rating_single = rate(cp.best_single);
@@ -427,11 +427,9 @@ void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const St
   rep.paragraph(
       "Model " + std::to_string(o.model.model.ures) + " x " + std::to_string(o.model.model.vres) +
       ", " + std::to_string(o.model.model.layers) + " layer(s), dt " + number(o.model.dt, 4) +
-      " s. Rating: satisfactory when the orifice is at most " +
-      number(o.rating.satisfactory_orifice_mm2, 1) + " mm^2 with at least " +
-      number(o.rating.satisfactory_coaptation_mm, 1) + " mm coaptation; unsatisfactory above " +
-      number(o.rating.unsatisfactory_orifice_mm2, 1) +
-      " mm^2 or with less than half the line coapting.");
+      " s. Rating from the effective regurgitant orifice (0.611 x the anatomic one): "
+      "satisfactory without regurgitation (below 1 mm^2), passable when mild, unsatisfactory "
+      "from moderate (ASE 2017: 20 mm^2) up.");
   rep.heading("Residual orifice");
   std::vector<std::vector<std::string>> rows;
   auto row = [&](const std::string& name, const json& s) {

@@ -16,6 +16,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
+#include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/core/table_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
@@ -55,23 +56,26 @@ const char* kRatings[] = {"satisfactory", "passable", "unsatisfactory"};
 
 // ---- rating and options ----------------------------------------------------------------------
 
-std::string ClosureRating::rate(double orifice, double coaptation, double fraction) const {
-  if (!std::isfinite(orifice)) return "unsatisfactory";
-  if (orifice > unsatisfactory_orifice_mm2 || fraction < 0.5) return "unsatisfactory";
-  if (orifice <= satisfactory_orifice_mm2 && coaptation >= satisfactory_coaptation_mm)
-    return "satisfactory";
-  return "passable";
+std::string ClosureRating::rate(double eroa, double observed) const {
+  if (!std::isfinite(eroa)) return "unsatisfactory";
+  const MrGrade g = mr_grade_of(eroa);
+  if (!std::isfinite(observed)) {
+    return g == MrGrade::kNone   ? "satisfactory"
+           : g == MrGrade::kMild ? "passable"
+                                 : "unsatisfactory";
+  }
+  const double tol = std::max(match_mm2, match_fraction * observed),
+               miss = std::abs(eroa - observed);
+  if (miss <= tol) return "satisfactory";
+  if (g == mr_grade_of(observed) || miss <= 2.0 * tol) return "passable";
+  return "unsatisfactory";
 }
 
 bool ClosureRating::is_valid(std::string* error) const {
-  auto fail = [&](const std::string& m) {
-    if (error) *error = m;
+  if (!(match_mm2 >= 0 && match_fraction >= 0 && (match_mm2 > 0 || match_fraction > 0))) {
+    if (error) *error = "rating: the EROA match tolerances must be >= 0 and not both 0";
     return false;
-  };
-  if (!(satisfactory_orifice_mm2 >= 0) || !(unsatisfactory_orifice_mm2 > satisfactory_orifice_mm2))
-    return fail("rating: need 0 <= satisfactory orifice < unsatisfactory orifice (mm^2)");
-  if (!(satisfactory_coaptation_mm >= 0))
-    return fail("rating: coaptation threshold must be >= 0 mm");
+  }
   return true;
 }
 
@@ -130,10 +134,7 @@ json CohortStudyOptions::config() const {
   json c{{"calibration_model", describe(model)},
          {"defaults", parameters_json(defaults)},
          {"calibrate", calibrate},
-         {"rating",
-          {{"satisfactory_orifice_mm2", rating.satisfactory_orifice_mm2},
-           {"satisfactory_coaptation_mm", rating.satisfactory_coaptation_mm},
-           {"unsatisfactory_orifice_mm2", rating.unsatisfactory_orifice_mm2}}}};
+         {"rating", {{"match_mm2", rating.match_mm2}, {"match_fraction", rating.match_fraction}}}};
   if (calibrate)
     c.update({{"fit", fit},
               {"method", inverse::fit_method_name(method)},
@@ -356,14 +357,14 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       c.error_default_mm = d.mean;
       c.error_default_sd_mm = d.sd;
       c.error_default_p95_mm = d.p95;
-      c.orifice_mm2 = r.samples.back().orifice_area_mm2;
-      const Coaptation co = measure_coaptation(r.samples.back().la_surface);
-      c.coaptation_mm = co.length_mm;
-      c.coapting_fraction = co.coapting_fraction;
+      // The effective regurgitant orifice, simulated and observed (a virtual patient's: its
+      // observation model's closed valve; a real patient's closed frame is too coarse for it).
+      c.orifice_mm2 = r.orifice ? r.orifice->eroa_mm2 : kNaN;
+      c.coaptation_mm = r.orifice ? r.orifice->coaptation_length_mm : kNaN;
+      c.coapting_fraction = r.orifice ? r.orifice->coapting_fraction : kNaN;
       c.orifice_observed_mm2 =
-          measure_closure(p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)])
-              .orifice_area_mm2;
-      c.rating = o.rating.rate(c.orifice_mm2, c.coaptation_mm, c.coapting_fraction);
+          p.truth && p.truth->closed_orifice ? p.truth->closed_orifice->eroa_mm2 : kNaN;
+      c.rating = o.rating.rate(c.orifice_mm2, c.orifice_observed_mm2);
       c.default_s = seconds_since(t0);
       if (p.truth) c.truth = parameters_json(p.truth->parameters);
     } catch (const std::exception& ex) {
@@ -726,14 +727,13 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
                  "errors before and after are measured alike."
            : std::string("Not calibrated (default parameters only).")));
   rep.paragraph(
-      "Closure rating (automatic, in place of the paper's visual one), from the simulated "
-      "closed valve: **satisfactory** when the orifice seen from the atrium is at most " +
-      number(o.rating.satisfactory_orifice_mm2, 1) + " mm^2 and the leaflets coapt over at least " +
-      number(o.rating.satisfactory_coaptation_mm, 1) +
-      " mm; **unsatisfactory** when the orifice "
-      "exceeds " +
-      number(o.rating.unsatisfactory_orifice_mm2, 1) +
-      " mm^2 or fewer than half the anterior columns coapt; **passable** otherwise.");
+      "Closure rating (automatic, in place of the paper's visual one: was the observed closure "
+      "captured?), from the effective regurgitant orifice (EROA, docs/regurgitant-orifice.md) of "
+      "the simulated closed valve against the observed one (a virtual patient's: the closed valve "
+      "of the model that made its observation): **satisfactory** within max(" +
+      number(o.rating.match_mm2, 1) + " mm^2, " + number(100 * o.rating.match_fraction, 0) +
+      " % of the observed); **passable** with the same MR grade (ASE 2017) or within twice that; "
+      "**unsatisfactory** otherwise.");
   rep.heading("mvtwin next to the paper");
   const json& ov = s["overall"];
   auto cell = [&](const json& st) { return mean_sd(mean_of(st), sd_of(st)); };

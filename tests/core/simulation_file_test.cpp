@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -43,6 +44,32 @@ TEST(SimulationFile, RoundTrip) {
   EXPECT_DOUBLE_EQ(b.element_stress_mpa[0], 0.05);
   ASSERT_EQ(b.summary.size(), 2u);
   EXPECT_EQ(b.summary[0].first, "steps");
+  // The regurgitant orifice and the surface it was measured on, every field.
+  ASSERT_TRUE(a.orifice && b.orifice);
+  const RegurgitantOrifice &x = *a.orifice, &y = *b.orifice;
+  EXPECT_GT(x.aroa_mm2, 0.0);
+  EXPECT_EQ(y.aroa_mm2, x.aroa_mm2);
+  EXPECT_EQ(y.eroa_mm2, x.eroa_mm2);
+  EXPECT_EQ(y.grade, x.grade);
+  EXPECT_EQ(y.options.seal_mm, x.options.seal_mm);
+  EXPECT_EQ(y.coaptation_length_mm, x.coaptation_length_mm);
+  EXPECT_EQ(std::isnan(y.coaptation_depth_mm), std::isnan(x.coaptation_depth_mm));
+  ASSERT_EQ(y.openings.size(), x.openings.size());
+  for (size_t i = 0; i < x.openings.size(); ++i) {
+    EXPECT_EQ(y.openings[i].area_mm2, x.openings[i].area_mm2);
+    EXPECT_EQ(y.openings[i].begin, x.openings[i].begin);
+    EXPECT_EQ(y.openings[i].max_gap_mm, x.openings[i].max_gap_mm);
+  }
+  ASSERT_EQ(y.columns.size(), x.columns.size());
+  EXPECT_EQ(y.columns[7].b, x.columns[7].b);
+  EXPECT_EQ(y.columns[7].anterior, x.columns[7].anterior);
+  EXPECT_EQ(b.orifice_surface.points(), a.orifice_surface.points());
+  EXPECT_EQ(b.orifice_lv_surface.points(), a.orifice_lv_surface.points());
+  // Without one (a failed simulation), no group and none read back.
+  SimulationRecord c = a;
+  c.orifice.reset();
+  write_simulation_file(f, c);
+  EXPECT_FALSE(read_simulation_file(f).orifice.has_value());
   fs::remove(f);
 }
 

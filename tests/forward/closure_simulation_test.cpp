@@ -56,6 +56,7 @@ TEST(ClosureSimulation, EnergyDecaysUnderDampingWithNoLoad) {
   o.papillary_motion = false;
   o.contact.enabled = false;
   o.record_every = 1;
+  o.orifice_refine = 0;  // what a calibration's candidate asks: no orifice measured
   ValveParameters par = p.truth->parameters;
   par.peak_pressure_mpa = 0.0;
   for (double& f : par.restlength_factor) f = 3.0;
@@ -69,6 +70,7 @@ TEST(ClosureSimulation, EnergyDecaysUnderDampingWithNoLoad) {
     o.initial_velocity.segment<3>(3 * i) = w.cross(m.mesh.V.row(i).transpose() - c);
   const ClosureResult r = simulate_closure(p.sequence, par, o);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
+  EXPECT_FALSE(r.orifice.has_value());
   ASSERT_GT(r.samples.size(), 10u);
   const double e0 = r.samples.front().kinetic_energy + r.samples.front().elastic_energy;
   EXPECT_GT(e0, 0.0);
@@ -232,6 +234,14 @@ TEST(ClosureSimulation, DefaultPatientClosesWithoutInterpenetration) {
   EXPECT_EQ(inside, 0);
   EXPECT_EQ(r.summary.interpenetrating_nodes, 0);
   EXPECT_EQ(r.summary.interpenetration_checked, checked);
+  // The closed valve's regurgitant orifice, measured on the end surface sampled 4x finer and
+  // sealed within the contact law's reach.
+  ASSERT_TRUE(r.orifice.has_value());
+  EXPECT_EQ(r.orifice_surface.ures(), 4 * o.model.ures);
+  EXPECT_EQ(r.orifice_surface.vres(), 4 * (o.model.vres - 1) + 1);
+  EXPECT_EQ(r.orifice->options.seal_mm, o.contact.alarm_mm);
+  EXPECT_GT(r.orifice->coapting_fraction, 0.5);
+  EXPECT_LT(r.orifice->aroa_mm2, closed.annulus_area_mm2);
 }
 
 // threads = 2 runs the element passes, the contact and the preconditioner's substitutions in two

@@ -37,9 +37,10 @@ ObjectiveOptions small_model() {
 
 /// The observation made by the calibration model itself, without noise (deliberately the
 /// inverse crime that calibrations must avoid), so the hidden values are the exact minimum.
-void observe_with_the_calibration_model(Patient* p) {
+void observe_with_the_calibration_model(Patient* p,
+                                        const ObjectiveOptions& model = small_model()) {
   forward::VirtualClosureOptions vo;
-  vo.simulation = small_model().simulation;
+  vo.simulation = model.simulation;
   vo.noise_mm = 0.0;
   forward::simulate_observed_closure(p, vo);
 }
@@ -148,11 +149,15 @@ TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
   // The optimizer's own check: observation made by the calibration model itself, without
   // noise (deliberately the inverse crime that calibrations must avoid), so the hidden values
   // are the exact minimum.
+  // Unsettled (the end state when the pressure peaks): on this 16 x 8 model the settled end
+  // jumps with the rest lengths (docs/forward-status.md), and on an AMD EPYC's BLAS the fit
+  // stopped in one of those jumps, 0.032 from the truth.
+  ObjectiveOptions model = small_model();
+  model.simulation.settle_mm = 0.0;
   Patient p = make_virtual_patient(3);
-  observe_with_the_calibration_model(&p);
+  observe_with_the_calibration_model(&p, model);
   const std::string marginal = marginal_restlengths();
-  ClosureObjective obj(p, ParameterSpace(marginal, truth_with_defaults_for(p, marginal)),
-                       small_model());
+  ClosureObjective obj(p, ParameterSpace(marginal, truth_with_defaults_for(p, marginal)), model);
   CalibrationOptions co;
   co.max_simulations = 30;
   co.step_tolerance = 0.02;

@@ -37,10 +37,10 @@ TEST(ClipSites, CandidatesAndRanking) {
   const double area[3] = {30.0, 0.0, 5.0};
   for (int i = 0; i < 3; ++i) {
     s[i].quality.converged = i != 1;
-    s[i].quality.orifice_area_mm2 = area[i];
+    s[i].quality.orifice.eroa_mm2 = area[i];
   }
   rank_by_residual_orifice(&s);
-  EXPECT_DOUBLE_EQ(s[0].quality.orifice_area_mm2, 5.0);
+  EXPECT_DOUBLE_EQ(s[0].quality.orifice.eroa_mm2, 5.0);
   EXPECT_FALSE(s[2].quality.converged) << "a failed simulation ranks last, whatever its area";
 }
 
@@ -59,7 +59,7 @@ TEST(ClipPrediction, ClippedSitesEndTogetherAndTheNoClipRunIsReported) {
   EXPECT_TRUE(r[0].quality.clip_gap_mm.empty());
   ASSERT_EQ(r[1].quality.clip_gap_mm.size(), 1u);
   EXPECT_LT(r[1].quality.clip_gap_mm[0], 2.0) << "the clipped sites stay within the clip's grasp";
-  EXPECT_GT(r[0].quality.coaptation.coapting_fraction, 0.5) << "the valve closes";
+  EXPECT_GT(r[0].quality.orifice.coapting_fraction, 0.5) << "the valve closes";
 }
 
 // Candidates two at a time against one at a time: the same closures bit for bit (scripts/tsan
@@ -82,8 +82,8 @@ TEST(ClipPrediction, ConcurrentCandidatesEqualSequentialOnes) {
     const ClosureQuality &a = two[i].quality, &b = one[i].quality;
     EXPECT_EQ(a.converged, b.converged) << i;
     EXPECT_EQ(a.reason, b.reason) << i;
-    EXPECT_EQ(a.orifice_area_mm2, b.orifice_area_mm2) << i;
-    EXPECT_EQ(a.coaptation.coapting_fraction, b.coaptation.coapting_fraction) << i;
+    EXPECT_EQ(a.orifice.aroa_mm2, b.orifice.aroa_mm2) << i;
+    EXPECT_EQ(a.orifice.coapting_fraction, b.orifice.coapting_fraction) << i;
     EXPECT_EQ(a.clip_gap_mm, b.clip_gap_mm) << i;
   }
   EXPECT_TRUE(two[1].quality.converged) << two[1].quality.reason;

@@ -59,20 +59,25 @@ json numbers_of(const json& study) {
   return out;
 }
 
-TEST(ClosureRating, ThresholdsDecide) {
-  const ClosureRating r;  // 5 mm^2 / 3 mm / 20 mm^2
-  EXPECT_EQ(r.rate(0.0, 6.0, 1.0), "satisfactory");
-  EXPECT_EQ(r.rate(5.0, 3.0, 1.0), "satisfactory");
-  EXPECT_EQ(r.rate(5.1, 6.0, 1.0), "passable");
-  EXPECT_EQ(r.rate(1.0, 2.9, 1.0), "passable");
-  EXPECT_EQ(r.rate(20.1, 6.0, 1.0), "unsatisfactory");
-  EXPECT_EQ(r.rate(0.0, 6.0, 0.4), "unsatisfactory");
-  EXPECT_EQ(r.rate(std::nan(""), 6.0, 1.0), "unsatisfactory");
+TEST(ClosureRating, TheObservedOrificeCapturedOrNot) {
+  const ClosureRating r;  // within max(3 mm^2, 25 %) of the observed EROA
+  EXPECT_EQ(r.rate(0.0, 0.0), "satisfactory");
+  EXPECT_EQ(r.rate(3.0, 0.0), "satisfactory");
+  EXPECT_EQ(r.rate(50.0, 40.0), "satisfactory");   // 25 % of 40 is 10
+  EXPECT_EQ(r.rate(5.5, 0.0), "passable");         // within twice the tolerance
+  EXPECT_EQ(r.rate(60.0, 42.0), "passable");       // both severe
+  EXPECT_EQ(r.rate(0.0, 45.0), "unsatisfactory");  // closed where the valve leaks
+  EXPECT_EQ(r.rate(30.0, 0.5), "unsatisfactory");
+  EXPECT_EQ(r.rate(std::nan(""), 0.0), "unsatisfactory");
+  // Without an observed orifice, by the grade alone.
+  EXPECT_EQ(r.rate(0.5, std::nan("")), "satisfactory");
+  EXPECT_EQ(r.rate(10.0, std::nan("")), "passable");
+  EXPECT_EQ(r.rate(25.0, std::nan("")), "unsatisfactory");
   ClosureRating bad;
-  bad.unsatisfactory_orifice_mm2 = 1.0;  // below the satisfactory bound
+  bad.match_mm2 = -1.0;
   std::string e;
   EXPECT_FALSE(bad.is_valid(&e));
-  EXPECT_NE(e.find("orifice"), std::string::npos);
+  EXPECT_NE(e.find("EROA"), std::string::npos);
 }
 
 TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "mvtwin/core/calibration_file.h"
+#include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/virtual_patient.h"
 
@@ -45,6 +46,11 @@ inline SimulationRecord sample_simulation_record() {
   r.final_positions = r.mesh.V * 1.1;
   r.element_strain = Eigen::VectorXd::Constant(1, 0.1);
   r.element_stress_mpa = Eigen::VectorXd::Constant(1, 0.05);
+  // The orifice measured on the last surface (an open frame: large openings).
+  r.orifice_surface = r.la_surface.back();
+  r.orifice_lv_surface = r.orifice_surface;
+  r.orifice_lv_surface.points().col(2).array() -= 1.0;  // a stand-in, 1 mm below
+  r.orifice = measure_regurgitant_orifice(r.orifice_surface, {}, &r.orifice_lv_surface);
   return r;
 }
 

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "mvtwin/core/image_volume.h"
+#include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
 
@@ -46,6 +47,9 @@ struct VirtualTruth {
   std::vector<std::pair<std::string, double>> anatomy;
   /// How the frames whose leaflets are not geometric (closing and closed) were produced.
   std::string closed_frames = "missing: closed frames need the forward simulator";
+  /// The regurgitant orifice of that simulation's closed valve: the true orifice, which the
+  /// noisy closed frames only hint at (ground_truth/orifice). Empty until they are simulated.
+  std::optional<RegurgitantOrifice> closed_orifice;
 };
 
 /// Everything mvtwin knows about one patient, real or virtual: the content of a patient file

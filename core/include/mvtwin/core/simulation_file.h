@@ -1,5 +1,6 @@
 #pragma once
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -8,6 +9,7 @@
 
 #include "mvtwin/core/leaflet_grid.h"
 #include "mvtwin/core/patient.h"
+#include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/core/tet_mesh.h"
 #include "mvtwin/core/valve_parameters.h"
 
@@ -40,6 +42,11 @@ struct SimulationRecord {
   TetMesh mesh;
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> final_positions;
   Eigen::VectorXd element_strain, element_stress_mpa;
+
+  /// The closed valve's regurgitant orifice and the fine atrial and ventricular surfaces it was
+  /// measured on (group `orifice`; absent in files of failed simulations and of older versions).
+  std::optional<RegurgitantOrifice> orifice;
+  LeafletGrid orifice_surface, orifice_lv_surface;
 };
 
 /// Writes atomically (a temporary file renamed over `path`). Throws mvtwin::Error.

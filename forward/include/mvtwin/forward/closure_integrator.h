@@ -107,6 +107,10 @@ class ClosureIntegrator {
 
   /// The measurements of one recorded instant (simulated time tau).
   ClosureSample sample(double tau, const ValveState& state) const;
+  /// The atrial (first) and ventricular (second) surfaces of `state` on a grid `refine` times
+  /// finer than the model grid (ures x refine columns, (vres - 1) x refine + 1 rows), sampled on
+  /// the elements' surfaces.
+  std::pair<LeafletGrid, LeafletGrid> leaflet_surfaces(const ValveState& state, int refine) const;
   /// Per element of the corner mesh at positions x: the largest principal co-rotational strain
   /// and the von Mises stress of the scene's leaflet material's response to it, MPa.
   void strain_and_stress(const Eigen::VectorXd& x, Eigen::VectorXd* strain,

@@ -120,6 +120,9 @@ struct AtrialSampler {
 AtrialSampler make_atrial_sampler(const ValveModel& model, int ures, int vres);
 /// The atrial surface at positions x (all nodes, flattened, mm) as a grid.
 LeafletGrid sample_atrial(const AtrialSampler& sampler, const Eigen::VectorXd& x);
+/// The same sampler moved to the ventricular surface (the last layer's nodes under the same
+/// grid points): sample_atrial with it gives the leaflets' ventricular side on the grid.
+AtrialSampler ventricular_sampler(const ValveModel& model, const AtrialSampler& atrial);
 
 /// Roughness of a leaflet grid, mm: the RMS of fourth differences along u and v over the
 /// rows beyond the annulus, scaled so that white noise of SD sigma per coordinate scores

@@ -2,8 +2,8 @@
 #include <string>
 #include <vector>
 
-#include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/patient.h"
+#include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/forward/closure_simulation.h"
 
 namespace mvtwin::inverse {
@@ -24,10 +24,9 @@ std::vector<ClipSite> parse_clip_sites(const std::string& text);
 struct ClosureQuality {
   bool converged = false;
   std::string reason;
-  double orifice_area_mm2 = 0, annulus_area_mm2 = 0;
-  int orifice_components = 0;
-  std::vector<double> component_areas_mm2;  ///< largest first
-  Coaptation coaptation;
+  /// The regurgitant orifice of the closed valve (ClosureResult::orifice; all zero when the
+  /// simulation failed or did not measure it).
+  RegurgitantOrifice orifice;
   std::vector<double> clip_gap_mm;  ///< per clip, at the end
 };
 ClosureQuality closure_quality(const forward::ClosureResult& r);
@@ -51,7 +50,7 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
 /// 0.2, 0.3, ..., 0.8, and (with pairs) every two of them at least 0.2 apart.
 std::vector<std::vector<ClipSite>> clip_candidates(bool pairs);
 
-/// Ranks scenarios: converged first, then by residual orifice area (smallest first).
+/// Ranks scenarios: converged first, then by effective regurgitant orifice (smallest first).
 void rank_by_residual_orifice(std::vector<ClipScenario>* scenarios);
 
 }  // namespace mvtwin::inverse

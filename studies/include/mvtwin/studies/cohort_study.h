@@ -19,16 +19,17 @@
 
 namespace mvtwin::studies {
 
-/// The automatic closure rating that stands in for the paper's visual one, from the simulated
-/// closed valve seen from the atrium: satisfactory when the orifice left is at most
-/// `satisfactory_orifice_mm2` and the leaflets coapt over at least `satisfactory_coaptation_mm`
-/// (median over the anterior columns); unsatisfactory when the orifice exceeds
-/// `unsatisfactory_orifice_mm2` or fewer than half the columns coapt; passable otherwise.
+/// The automatic closure rating that stands in for the paper's visual one (Mansi et al. 2012,
+/// Sec. 3.3: satisfactory when the closure observed in the images is captured, passable when only
+/// partly, unsatisfactory when the valve is still open or not as observed), from the effective
+/// regurgitant orifice (core/regurgitant_orifice.h) of the simulated closed valve against the
+/// observed one: satisfactory within max(match_mm2, match_fraction x observed); passable with the
+/// same MR grade or within twice that; unsatisfactory otherwise. Without an observed orifice (NaN):
+/// no regurgitation is satisfactory, mild passable, more unsatisfactory.
 struct ClosureRating {
-  double satisfactory_orifice_mm2 = 5.0;
-  double satisfactory_coaptation_mm = 3.0;
-  double unsatisfactory_orifice_mm2 = 20.0;
-  std::string rate(double orifice_mm2, double coaptation_mm, double coapting_fraction) const;
+  double match_mm2 = 3.0;
+  double match_fraction = 0.25;
+  std::string rate(double eroa_mm2, double observed_eroa_mm2) const;
   bool is_valid(std::string* error) const;
 };
 
