@@ -37,8 +37,7 @@ ObjectiveOptions small_model() {
 
 /// The observation made by the calibration model itself, without noise (deliberately the
 /// inverse crime that calibrations must avoid), so the hidden values are the exact minimum.
-void observe_with_the_calibration_model(Patient* p,
-                                        const ObjectiveOptions& model = small_model()) {
+void observe_with_the_calibration_model(Patient* p, const ObjectiveOptions& model = small_model()) {
   forward::VirtualClosureOptions vo;
   vo.simulation = model.simulation;
   vo.noise_mm = 0.0;
