@@ -582,30 +582,80 @@ AtrialSampler make_atrial_sampler(const ValveModel& m, int ures, int vres) {
   out.vres = vres;
   const auto& st = m.surface_st;
   const Eigen::Index F = m.surface_triangles.rows();
+  // Barycentric coordinates of q in triangle f, unwrapped around the triangle's first vertex
+  // (s is periodic).
+  auto barycentric = [&](Eigen::Index f, const Eigen::Vector2d& q, Eigen::Vector3d* bw) {
+    Eigen::Vector2d p[3];
+    for (int k = 0; k < 3; ++k) p[k] = st.row(m.surface_triangles(f, k)).transpose();
+    for (int k = 1; k < 3; ++k) p[k].x() -= std::round(p[k].x() - p[0].x());
+    Eigen::Vector2d qq = q;
+    qq.x() -= std::round(qq.x() - p[0].x());
+    const Eigen::Vector2d e1 = p[1] - p[0], e2 = p[2] - p[0], r = qq - p[0];
+    const double det = e1.x() * e2.y() - e1.y() * e2.x();
+    if (std::abs(det) < 1e-300) return false;
+    const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det;
+    const double b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
+    *bw = Eigen::Vector3d(1.0 - b1 - b2, b1, b2);
+    return true;
+  };
+  // Buckets over the unrolled plane (s periodic in [0, 1), t in [0, 1]) holding the triangles
+  // whose bounding box meets them, in index order: a point's first containing triangle is found
+  // among its bucket's, as a scan of every triangle would find it (ascending indices).
+  const int nb = std::max(4, static_cast<int>(std::sqrt(static_cast<double>(F))));
+  std::vector<std::vector<int>> bucket(static_cast<size_t>(nb) * nb);
+  auto t_cell = [&](double t) {
+    return std::clamp(static_cast<int>(std::floor(t * nb)), 0, nb - 1);
+  };
+  for (Eigen::Index f = 0; f < F; ++f) {
+    double x0 = st(m.surface_triangles(f, 0), 0), x1 = x0, y0 = st(m.surface_triangles(f, 0), 1),
+           y1 = y0;
+    for (int k = 1; k < 3; ++k) {
+      double x = st(m.surface_triangles(f, k), 0);
+      x -= std::round(x - st(m.surface_triangles(f, 0), 0));
+      x0 = std::min(x0, x);
+      x1 = std::max(x1, x);
+      y0 = std::min(y0, st(m.surface_triangles(f, k), 1));
+      y1 = std::max(y1, st(m.surface_triangles(f, k), 1));
+    }
+    const int i0 = static_cast<int>(std::floor(x0 * nb)) - 1,
+              i1 = static_cast<int>(std::floor(x1 * nb)) + 1;
+    for (int j = std::max(0, t_cell(y0) - 1); j <= std::min(nb - 1, t_cell(y1) + 1); ++j)
+      for (int i = i0; i <= i1; ++i) {
+        std::vector<int>& b = bucket[static_cast<size_t>(j) * nb + ((i % nb) + nb) % nb];
+        if (b.empty() || b.back() != f) b.push_back(static_cast<int>(f));
+      }
+  }
   for (int v = 0; v < vres; ++v) {
     for (int u = 0; u < ures; ++u) {
       const Eigen::Vector2d q(static_cast<double>(u) / ures, static_cast<double>(v) / (vres - 1));
       double best = -std::numeric_limits<double>::infinity();
       std::array<int, 3> nodes{};
-      Eigen::Vector3d w;
-      for (Eigen::Index f = 0; f < F; ++f) {
-        // Unwrap the triangle around its first vertex, and the query to the same period.
-        Eigen::Vector2d p[3];
-        for (int k = 0; k < 3; ++k) p[k] = st.row(m.surface_triangles(f, k)).transpose();
-        for (int k = 1; k < 3; ++k) p[k].x() -= std::round(p[k].x() - p[0].x());
-        Eigen::Vector2d qq = q;
-        qq.x() -= std::round(qq.x() - p[0].x());
-        const Eigen::Vector2d e1 = p[1] - p[0], e2 = p[2] - p[0], r = qq - p[0];
-        const double det = e1.x() * e2.y() - e1.y() * e2.x();
-        if (std::abs(det) < 1e-300) continue;
-        const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det;
-        const double b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
-        const Eigen::Vector3d bw(1.0 - b1 - b2, b1, b2);
-        if (bw.minCoeff() > best) {
-          best = bw.minCoeff();
-          w = bw;
-          for (int k = 0; k < 3; ++k) nodes[k] = m.surface_triangles(f, k);
-          if (best >= 0) break;
+      Eigen::Vector3d w, bw;
+      const std::vector<int>& cand =
+          bucket[static_cast<size_t>(t_cell(q.y())) * nb +
+                 std::clamp(static_cast<int>(std::floor(q.x() * nb)), 0, nb - 1)];
+      int inside = -1;
+      for (int f : cand) {
+        if (barycentric(f, q, &bw) && bw.minCoeff() >= 0) {
+          inside = f;
+          break;
+        }
+      }
+      if (inside >= 0) {
+        barycentric(inside, q, &w);
+        best = w.minCoeff();
+        for (int k = 0; k < 3; ++k) nodes[k] = m.surface_triangles(inside, k);
+      } else {
+        // Outside every triangle of its bucket: the scan over all (the free-edge curve between
+        // boundary points lies outside every triangle; then the closest in barycentric terms).
+        for (Eigen::Index f = 0; f < F; ++f) {
+          if (!barycentric(f, q, &bw)) continue;
+          if (bw.minCoeff() > best) {
+            best = bw.minCoeff();
+            w = bw;
+            for (int k = 0; k < 3; ++k) nodes[k] = m.surface_triangles(f, k);
+            if (best >= 0) break;
+          }
         }
       }
       // Outside every triangle (the free-edge curve between boundary points): clamp.

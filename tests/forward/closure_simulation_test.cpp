@@ -234,11 +234,12 @@ TEST(ClosureSimulation, DefaultPatientClosesWithoutInterpenetration) {
   EXPECT_EQ(inside, 0);
   EXPECT_EQ(r.summary.interpenetrating_nodes, 0);
   EXPECT_EQ(r.summary.interpenetration_checked, checked);
-  // The closed valve's regurgitant orifice, measured on the end surface sampled 4x finer and
+  // The closed valve's regurgitant orifice, measured on the end surface sampled finer and
   // sealed within the contact law's reach.
   ASSERT_TRUE(r.orifice.has_value());
-  EXPECT_EQ(r.orifice_surface.ures(), 4 * o.model.ures);
-  EXPECT_EQ(r.orifice_surface.vres(), 4 * (o.model.vres - 1) + 1);
+  EXPECT_EQ(r.orifice_surface.ures(), o.orifice_refine * o.model.ures);
+  EXPECT_EQ(r.orifice_surface.vres(), o.orifice_refine * (o.model.vres - 1) + 1);
+  EXPECT_GT(o.orifice_refine, 1);
   EXPECT_EQ(r.orifice->options.seal_mm, o.contact.alarm_mm);
   EXPECT_GT(r.orifice->coapting_fraction, 0.5);
   EXPECT_LT(r.orifice->aroa_mm2, closed.annulus_area_mm2);

@@ -100,8 +100,11 @@ struct ClosureOptions {
   /// The regurgitant orifice of the closed valve (core/regurgitant_orifice.h) is measured on the
   /// end state's atrial surface sampled this many times finer than the model grid, exactly on
   /// the elements' (curved) surface; 0 = not measured (calibration's candidates need only the
-  /// surface). 4 puts the columns 0.3-0.9 mm apart at the paper's grid.
-  int orifice_refine = 4;
+  /// surface). At 3 (columns 0.4-1.2 mm apart at the paper's grid) the AROA of virtual patients
+  /// 1 and cohort seed 2026's 2 and 5 is within 1.2 % (0.12 mm^2) of 8 times finer, at 0.1-0.2 s
+  /// per closure; at 2 within 3.1 %, at 4 within 0.3 % for 0.2-0.35 s
+  /// (docs/regurgitant-orifice.md).
+  int orifice_refine = 3;
   /// A failed step (inverted element, non-finite value, solver failure) is retried with half
   /// the step at most this many times before the simulation stops with a failure status.
   int max_step_halvings = 3;
