@@ -38,25 +38,64 @@ std::string f1(double v) {
   return b;
 }
 
-std::string describe(const std::vector<inverse::ClipSite>& sites) {
-  std::string s;
-  for (const auto& c : sites) {
-    char b[64];
-    std::snprintf(b, sizeof b, "%s%.2f,%.2f", s.empty() ? "" : ";", c.position, c.depth);
-    s += b;
-  }
-  return s.empty() ? "none" : s;
-}
-
 json quality_json(const inverse::ClosureQuality& q) {
   json j = {{"converged", q.converged}, {"reason", q.reason}, {"clip_gap_end_mm", q.clip_gap_mm}};
   if (q.converged) j.update(orifice_json(q.orifice));
+  json grasps = json::array();
+  for (const forward::ClipGrasp& g : q.clip_grasps) {
+    grasps.push_back({{"device", g.device},
+                      {"anterior_insertion_mm", g.anterior_insertion_mm},
+                      {"posterior_insertion_mm", g.posterior_insertion_mm},
+                      {"anterior_nodes", g.anterior_nodes},
+                      {"posterior_nodes", g.posterior_nodes},
+                      {"line_begin", g.line_begin},
+                      {"line_end", g.line_end}});
+  }
+  j["grasps"] = grasps;
+  const inverse::ClipFlags f = inverse::clip_flags(q.clip_grasps);
+  j["detachment_risk"] = f.detachment_risk;
+  j["min_insertion_mm"] = f.min_insertion_mm;
   return j;
 }
 
 std::string quality_line(const inverse::ClosureQuality& q) {
   if (!q.converged) return "simulation failed: " + q.reason;
-  return orifice_line(q.orifice);
+  std::string s = orifice_line(q.orifice);
+  const inverse::ClipFlags f = inverse::clip_flags(q.clip_grasps);
+  if (!q.clip_grasps.empty() && f.min_insertion_mm > 0)
+    s += "; shallowest leaflet insertion " + f1(f.min_insertion_mm) + " mm" +
+         (f.detachment_risk ? " (DETACHMENT RISK)" : "");
+  return s;
+}
+
+json sites_json(const std::vector<inverse::ClipSite>& sites) {
+  json positions = json::array();
+  for (const auto& s : sites) positions.push_back(s.position);
+  return {{"device", sites.empty() ? std::string("none") : sites.front().device},
+          {"positions", positions},
+          {"sites", inverse::describe_sites(sites)}};
+}
+
+json everest_json(const inverse::EverestCriteria& e) {
+  auto n = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  return {{"coaptation_length_mm", n(e.coaptation_length_mm)},
+          {"coaptation_length_ok", e.coaptation_length_ok},
+          {"coaptation_depth_mm", n(e.coaptation_depth_mm)},
+          {"coaptation_depth_ok", e.coaptation_depth_ok},
+          {"flail_gap_mm", n(e.flail_gap_mm)},
+          {"flail_gap_ok", e.flail_gap_ok},
+          {"flail_width_mm", n(e.flail_width_mm)},
+          {"flail_width_ok", e.flail_width_ok},
+          {"all_ok", e.all_ok()}};
+}
+
+std::string everest_line(const inverse::EverestCriteria& e) {
+  auto mark = [](bool ok) { return ok ? std::string("ok") : std::string("NOT MET"); };
+  return "EVEREST anatomy: coaptation length " + f1(e.coaptation_length_mm) +
+         " mm (>= 2: " + mark(e.coaptation_length_ok) + "), depth " + f1(e.coaptation_depth_mm) +
+         " mm (< 11: " + mark(e.coaptation_depth_ok) + "), largest gap " + f1(e.flail_gap_mm) +
+         " mm (flail gap < 10: " + mark(e.flail_gap_ok) + "), its width " + f1(e.flail_width_mm) +
+         " mm (flail width < 15: " + mark(e.flail_width_ok) + ")";
 }
 
 /// The simulation options a calibration used (its options record), else the defaults.
@@ -103,44 +142,69 @@ int run_clip(const ClipArgs& a) {
   std::cout << "clip prediction for " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << " with "
             << source << std::endl;
   std::vector<std::vector<inverse::ClipSite>> cands{{}};  // first: no clip
+  std::vector<std::string> devices = a.devices;
+  if (devices.empty()) {
+    for (const forward::ClipDevice& d : forward::clip_devices()) devices.push_back(d.name);
+  }
   if (a.suggest) {
-    for (auto& c : inverse::clip_candidates(a.pairs)) cands.push_back(c);
+    for (auto& c : inverse::clip_candidates(false, devices)) cands.push_back(c);
   } else {
-    cands.push_back(inverse::parse_clip_sites(a.at));
+    cands.push_back(inverse::parse_clip_sites(a.at, a.device));
   }
   std::cout << "  simulating " << cands.size() << " closures (" << a.jobs << " at once) ..."
             << std::endl;
   std::vector<inverse::ClipScenario> res = inverse::simulate_clips(p, par, o, cands, a.jobs);
   const inverse::ClipScenario before = res.front();
   std::cout << "before: " << quality_line(before.quality) << "\n";
+  const inverse::EverestCriteria everest = inverse::everest_criteria(before.quality.orifice);
+  if (before.quality.converged) std::cout << everest_line(everest) << "\n";
   json j{{"patient_id", p.id},
          {"synthetic", p.synthetic},
          {"parameters_from", source},
          {"options", forward::describe_options(o)},
          {"before", quality_json(before.quality)},
+         {"everest", everest_json(everest)},
          {"provenance", provenance(a.command_line)}};
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
   std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
   if (a.suggest) {
     inverse::rank_by_residual_orifice(&clipped);
-    std::cout << "candidates ranked by residual orifice:\n";
+    if (a.pairs) {
+      // Pairs around the three best single clips (their device, a second clip at least 0.2
+      // away along the line).
+      std::vector<std::vector<inverse::ClipSite>> best;
+      for (size_t i = 0; i < std::min<size_t>(3, clipped.size()); ++i)
+        if (clipped[i].quality.converged) best.push_back(clipped[i].sites);
+      const auto pairs = inverse::pairs_around(best);
+      std::cout << "  simulating " << pairs.size() << " pairs around the best single clips ..."
+                << std::endl;
+      for (auto& sc : inverse::simulate_clips(p, par, o, pairs, a.jobs)) clipped.push_back(sc);
+      inverse::rank_by_residual_orifice(&clipped);
+    }
+    std::cout << "options ranked by the effective regurgitant orifice left:\n";
     json ranked = json::array();
     int rank = 0;
     for (const auto& s : clipped) {
-      std::cout << "  " << ++rank << ". clip at " << describe(s.sites) << ": "
+      std::cout << "  " << ++rank << ". " << inverse::describe_sites(s.sites) << ": "
                 << quality_line(s.quality) << "\n";
-      ranked.push_back({{"sites", describe(s.sites)}, {"after", quality_json(s.quality)}});
+      json r = sites_json(s.sites);
+      r["after"] = quality_json(s.quality);
+      ranked.push_back(r);
     }
     j["ranked"] = ranked;
   } else {
     const auto& s = clipped.front();
-    std::cout << "after clip at " << describe(s.sites) << ": " << quality_line(s.quality) << "\n";
+    std::cout << "after " << inverse::describe_sites(s.sites) << ": " << quality_line(s.quality)
+              << "\n";
     for (size_t c = 0; c < s.quality.clip_gap_mm.size(); ++c)
-      std::cout << "  clip " << c + 1 << ": atrial surfaces " << f1(s.quality.clip_gap_mm[c])
-                << " mm apart at the end\n";
-    j["sites"] = describe(s.sites);
+      std::cout << "  clip " << c + 1 << ": grasped leaflets " << f1(s.quality.clip_gap_mm[c])
+                << " mm apart at the end (atrial surfaces)\n";
+    j.update(sites_json(s.sites));
     j["after"] = quality_json(s.quality);
+    if (s.quality.converged) j.update(orifice_json(s.quality.orifice));
+    const inverse::ClipFlags f = inverse::clip_flags(s.quality.clip_grasps);
+    j["detachment_risk"] = f.detachment_risk;
   }
   // The chosen (or best) scenario as a full simulation file and VTK.
   if (!a.out.empty() || !a.vtk.empty()) {
@@ -172,11 +236,16 @@ void register_clip(CLI::App& app, Context& ctx) {
       "Examples:\n  mvtwin clip observed.h5 --params calib.h5 --at 0.5,1 --out clipped.h5\n"
       "  mvtwin clip observed.h5 --params calib.h5 --at \"0.35,1;0.65,1\" --out two_clips.h5\n"
       "  mvtwin clip observed.h5 --params calib.h5 --suggest --pairs --jobs 2\n"
-      "A site is position,depth: position along the coaptation line (0 = anterolateral\n"
-      "commissure, 1 = posteromedial), depth 1 = the free edges. The open valve is clipped with\n"
-      "the pressure off and the boundary held, then closes under the patient's motion and\n"
-      "pressure with the calibrated parameters (--params; the defaults without it). Reports\n"
-      "the regurgitant orifice, its openings and the coaptation length before and after.");
+      "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at 0.45 --out ntw.h5\n"
+      "A site is a position along the coaptation line (0 = anterolateral commissure, 1 =\n"
+      "posteromedial). The device (--device, default XTW; docs/clip-devices.md) grasps a band\n"
+      "of each leaflet as wide as its arms and as deep as the leaflet inserts (from the\n"
+      "geometry, capped by the arm) on the open valve with the pressure off and the boundary\n"
+      "held, then the valve closes under the patient's motion and pressure with the calibrated\n"
+      "parameters (--params; the defaults without it). Reports the regurgitant orifice (EROA,\n"
+      "MR grade, openings), coaptation, the leaflet insertions (detachment risk below 4 mm) and\n"
+      "the EVEREST anatomic criteria. --suggest ranks every device at positions 0.2-0.8;\n"
+      "--pairs adds pairs around the three best.");
   auto a = std::make_shared<ClipArgs>();
   cmd->add_flag(
       "--use-detected", a->use_detected,
@@ -187,7 +256,13 @@ void register_clip(CLI::App& app, Context& ctx) {
          "--true-params", a->true_params,
          "a virtual patient's hidden parameters (synthetic only: what a calibration's error costs)")
       ->excludes(params_opt);
-  cmd->add_option("--at", a->at, "clip site(s): position,depth[;position,depth]");
+  cmd->add_option("--at", a->at, "clip site(s): position[;position] along the coaptation line");
+  cmd->add_option("--device", a->device,
+                  "the device at --at: NT, XT, NTW, XTW (MitraClip G4), ACE, P10 (PASCAL), or "
+                  "spring (the paper's clip: a spring at position,depth)")
+      ->default_val(a->device);
+  cmd->add_option("--devices", a->devices,
+                  "with --suggest: the devices to search (default: every device of the table)");
   cmd->add_option("--out", a->out,
                   "result of the clipped closure (simulation file; a .json "
                   "summary is written beside it)");

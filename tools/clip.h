@@ -11,6 +11,8 @@ struct ClipArgs : CommandArgs {
   std::string file;
   std::string params;
   std::string at;
+  std::string device = "XTW";
+  std::vector<std::string> devices;
   std::string out;
   std::string vtk;
   bool suggest = false;

@@ -45,6 +45,12 @@ bool OrificeOptions::is_valid(std::string* error) const {
     *error = "orifice central fraction must be in (0, 1]";
     return false;
   }
+  for (const auto& [b, e] : blocked) {
+    if (!(b >= 0 && e <= 1 && b <= e)) {
+      *error = "orifice: a blocked stretch must satisfy 0 <= begin <= end <= 1";
+      return false;
+    }
+  }
   return true;
 }
 
@@ -96,7 +102,7 @@ struct Side {
 };
 
 Side measure_side(const LeafletGrid& g, const LeafletGrid* lv, bool anterior,
-                  const TriangleBvh& other) {
+                  const TriangleBvh& other, const std::vector<std::pair<double, double>>& blocked) {
   const int U = g.ures(), V = g.vres(), half = U / 2;
   Side s;
   s.anterior = anterior;
@@ -131,6 +137,13 @@ Side measure_side(const LeafletGrid& g, const LeafletGrid* lv, bool anterior,
           best_hit = hv;
           best_a = lv->at(s.u[i], v);
         }
+      }
+    }
+    // A device's body fills the line here: sealed.
+    for (const auto& [b0, b1] : blocked) {
+      if (s.x[i] >= b0 && s.x[i] <= b1) {
+        best = 0.0;
+        best_hit.point = best_a;
       }
     }
     s.v_min.push_back(best_v);
@@ -210,8 +223,8 @@ RegurgitantOrifice measure_regurgitant_orifice(const LeafletGrid& g, const Orifi
     throw Error("regurgitant orifice: non-finite ventricular surface coordinates");
   const TriangleBvh anterior_bvh(leaflet_mesh(g, lv, true)),
       posterior_bvh(leaflet_mesh(g, lv, false));
-  const Side sides[2] = {measure_side(g, lv, true, posterior_bvh),
-                         measure_side(g, lv, false, anterior_bvh)};
+  const Side sides[2] = {measure_side(g, lv, true, posterior_bvh, opt.blocked),
+                         measure_side(g, lv, false, anterior_bvh, opt.blocked)};
   const double seal = opt.seal_mm;
 
   RegurgitantOrifice r;

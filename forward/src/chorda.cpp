@@ -1,5 +1,7 @@
 #include "mvtwin/forward/chorda.h"
 
+#include <algorithm>
+
 #include "mvtwin/core/units.h"
 
 namespace mvtwin::forward {
@@ -50,6 +52,30 @@ void chorda_gradient(const ChordaLaw& law, double L0, const Eigen::Vector3d& a,
     const double dTdl = law.area * law.tangent(strain) / L0;
     const Eigen::Matrix3d Kb =
         dTdl * n * n.transpose() + (T / l) * (Eigen::Matrix3d::Identity() - n * n.transpose());
+    H->topLeftCorner<3, 3>() = Kb;
+    H->bottomRightCorner<3, 3>() = Kb;
+    H->topRightCorner<3, 3>() = -Kb;
+    H->bottomLeftCorner<3, 3>() = -Kb;
+  }
+}
+
+void tie_gradient(double k, double L0, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                  Eigen::Matrix<double, 6, 1>* g, Eigen::Matrix<double, 6, 6>* H, double* energy) {
+  const Eigen::Vector3d d = b - a;
+  const double l = d.norm();
+  const double T = k * (l - L0);  // N, negative when pushing
+  if (energy) *energy = 0.5 * k * (l - L0) * (l - L0);
+  if (g) g->setZero();
+  if (H) H->setZero();
+  if (l <= 0.0) return;
+  const Eigen::Vector3d n = d / l;
+  if (g) {
+    g->head<3>() = -T * n;
+    g->tail<3>() = T * n;
+  }
+  if (H) {
+    const Eigen::Matrix3d P = n * n.transpose();
+    const Eigen::Matrix3d Kb = k * P + (std::max(T, 0.0) / l) * (Eigen::Matrix3d::Identity() - P);
     H->topLeftCorner<3, 3>() = Kb;
     H->bottomRightCorner<3, 3>() = Kb;
     H->topRightCorner<3, 3>() = -Kb;

@@ -48,7 +48,8 @@ ClosureIntegrator::ClosureIntegrator(const ClosureScene& scene, const ClosureOpt
     cables_.push_back({c.nodes, {}, c.tip, c.rest_length, &c.law, 0.0});
   first_spring_ = static_cast<int>(cables_.size());
   for (const SceneSpring& sp : scene_.springs)
-    cables_.push_back({sp.a, sp.b, -1, sp.rest_length, nullptr, sp.stiffness});
+    cables_.push_back(
+        {sp.a, sp.b, -1, sp.rest_length, nullptr, sp.stiffness, sp.bilateral, sp.clip});
   cable_tangent_.resize(cables_.size());
 
   fixed_.assign(ndof_, 0);
@@ -111,7 +112,9 @@ double ClosureIntegrator::cable_rest(size_t c, double tau) const {
   if (static_cast<int>(c) < first_spring_ || tau >= 0.0) return cables_[c].rest;
   const double q = 1.0 - std::min(1.0, -tau / clip_phase_);  // 0 at the phase's start
   const double w = q * q * (3.0 - 2.0 * q);
-  return std::max(cables_[c].rest, (1.0 - w) * spring_start_[c] + w * cables_[c].rest);
+  const double closing = (1.0 - w) * spring_start_[c] + w * cables_[c].rest;
+  // A tension-only clip never pushes the sites apart; a device's tie takes them to its length.
+  return cables_[c].bilateral ? closing : std::max(cables_[c].rest, closing);
 }
 
 ValveState ClosureIntegrator::initial_state() const {
@@ -190,10 +193,14 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
       Eigen::Matrix<double, 6, 1> gc;
       Eigen::Matrix<double, 6, 6> Hc;
       const double rest = cable_rest(c, tau1);
-      // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
-      const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
       const Eigen::Vector3d end = cb.b.empty() ? tips[cb.tip] : mean_of(cb.b, x1);
-      chorda_gradient(law, rest, mean_of(cb.a, x1), end, &gc, &Hc);
+      if (cb.bilateral) {
+        tie_gradient(cb.k, rest, mean_of(cb.a, x1), end, &gc, &Hc);
+      } else {
+        // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
+        const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
+        chorda_gradient(law, rest, mean_of(cb.a, x1), end, &gc, &Hc);
+      }
       for (int k : cb.a) f.segment<3>(3 * k) -= gc.head<3>() / static_cast<double>(cb.a.size());
       for (int k : cb.b) f.segment<3>(3 * k) -= gc.tail<3>() / static_cast<double>(cb.b.size());
       cable_tangent_[c] = Hc.topLeftCorner<3, 3>();
@@ -463,8 +470,16 @@ void ClosureIntegrator::strain_and_stress(const Eigen::VectorXd& x, Eigen::Vecto
 }
 
 double ClosureIntegrator::clip_gap(int c, const Eigen::VectorXd& x) const {
-  const Cable& cb = cables_.at(static_cast<size_t>(first_spring_ + c));
-  return (x.segment<3>(3 * cb.a.front()) - x.segment<3>(3 * cb.b.front())).norm();
+  // The mean distance between the atrial surface nodes of the clip's tied cross-sections.
+  double sum = 0.0;
+  int n = 0;
+  for (size_t k = static_cast<size_t>(first_spring_); k < cables_.size(); ++k) {
+    const Cable& cb = cables_[k];
+    if (cb.clip != c) continue;
+    sum += (x.segment<3>(3 * cb.a.front()) - x.segment<3>(3 * cb.b.front())).norm();
+    ++n;
+  }
+  return n > 0 ? sum / n : 0.0;
 }
 
 void ClosureIntegrator::finish(ClosureResult* result) const {
@@ -477,6 +492,7 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   sum.interpenetration_checked = ip.checked;
   sum.guarded_elements = static_cast<int>(rot_.guards.size());
   result->guarded_elements.assign(ever_guarded_.begin(), ever_guarded_.end());
+  result->clip_grasps = scene_.grasps;
   const StepSolver::Stats& ls = linear_.stats();
   sum.pcg_fallbacks = ls.pcg_fallbacks;
   sum.double_fallbacks = ls.double_fallbacks;

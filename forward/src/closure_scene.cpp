@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 #include <string>
 
 #include "mvtwin/core/error.h"
@@ -48,7 +49,127 @@ int nearest_surface_node(const ValveModel& m, double s, double t) {
   return best;
 }
 
+/// The band of one leaflet a device grasps: surface nodes within half the width of the site
+/// along the annulus (arc length in the unrolled plane) and within the insertion of the free
+/// edge, each with its offset along the coaptation line (mm, in the line's direction) and its
+/// distance from the free edge (mm).
+struct Band {
+  std::vector<int> nodes;
+  std::vector<double> along, from_edge;
+};
+
+Band grasped_band(const ValveModel& m, double s_site, bool anterior, double width,
+                  double insertion) {
+  // Arc length of the site: the annulus columns' unrolled positions, interpolated.
+  const int U = static_cast<int>(m.annulus_column.size());
+  const double x = (s_site - std::floor(s_site)) * U;
+  const int u0 = static_cast<int>(std::floor(x)) % U, u1 = (u0 + 1) % U;
+  double xi0 = m.surface_plane(m.annulus_column[u0], 0),
+         xi1 = m.surface_plane(m.annulus_column[u1], 0);
+  if (xi1 < xi0) xi1 += m.perimeter;
+  const double xi_site = xi0 + (x - std::floor(x)) * (xi1 - xi0);
+  Band b;
+  for (int i = 0; i < m.surface_nodes; ++i) {
+    const double t = m.surface_st(i, 1);
+    if ((m.surface_st(i, 0) < 0.5) != anterior || t < 0.05) continue;
+    double d = m.surface_plane(i, 0) - xi_site;
+    d -= m.perimeter * std::round(d / m.perimeter);
+    const double depth = m.surface_plane(i, 1), from_edge = depth * (1.0 / t - 1.0);
+    if (std::abs(d) > 0.5 * width || from_edge > insertion) continue;
+    b.nodes.push_back(i);
+    // Along the line: the anterior leaflet's arc runs with the line, the posterior's against it.
+    b.along.push_back(anterior ? d : -d);
+    b.from_edge.push_back(from_edge);
+  }
+  return b;
+}
+
 }  // namespace
+
+void add_device_clip(const ValveSequence& seq, const ClosureOptions& opt, int index,
+                     ClosureScene* sc) {
+  const ClipOptions& clip = opt.clips[static_cast<size_t>(index)];
+  const ValveModel& model = sc->model;
+  ClipGrasp g;
+  g.device = clip.device.empty() ? "device" : clip.device;
+  // Insertion from the geometry at the grasp: the leaflets span the annulus chord between the
+  // sites (first closed frame) to their meeting point, in proportion to their lengths
+  // (end-diastole); what is left of each inserts, up to the arm's length.
+  const LeafletGrid& ed = *seq.frames[static_cast<size_t>(seq.end_diastole)].la_surface;
+  const auto closed =
+      resample_closed_curve(seq.frames[static_cast<size_t>(seq.first_closed)].annulus, 512);
+  auto annulus_at = [&](double s) -> Eigen::Vector3d {
+    return closed.row(static_cast<int>(std::lround((s - std::floor(s)) * 512)) % 512).transpose();
+  };
+  const double La = ed.radial_length_at(clip.anterior_s),
+               Lp = ed.radial_length_at(clip.posterior_s);
+  const double chord = (annulus_at(clip.anterior_s) - annulus_at(clip.posterior_s)).norm();
+  const double excess = std::max(0.0, La + Lp - chord);
+  auto insertion = [&](double L) {
+    if (clip.insertion_mm > 0) return std::min(clip.insertion_mm, clip.arm_length_mm);
+    return std::min(clip.arm_length_mm, L * excess / (La + Lp));
+  };
+  g.anterior_insertion_mm = insertion(La);
+  g.posterior_insertion_mm = insertion(Lp);
+  const Band a = grasped_band(model, clip.anterior_s, true, clip.width_mm, g.anterior_insertion_mm);
+  const Band p =
+      grasped_band(model, clip.posterior_s, false, clip.width_mm, g.posterior_insertion_mm);
+  g.anterior_nodes = static_cast<int>(a.nodes.size());
+  g.posterior_nodes = static_cast<int>(p.nodes.size());
+  // Its place on the coaptation line (anterior s / 0.5, posterior (1 - s) / 0.5).
+  g.line_begin = 1.0;
+  g.line_end = 0.0;
+  for (int i : a.nodes) {
+    g.line_begin = std::min(g.line_begin, 2.0 * model.surface_st(i, 0));
+    g.line_end = std::max(g.line_end, 2.0 * model.surface_st(i, 0));
+  }
+  for (int i : p.nodes) {
+    g.line_begin = std::min(g.line_begin, 2.0 * (1.0 - model.surface_st(i, 0)));
+    g.line_end = std::max(g.line_end, 2.0 * (1.0 - model.surface_st(i, 0)));
+  }
+  if (a.nodes.empty() || p.nodes.empty()) {
+    throw Error(
+        "clip " + std::to_string(index + 1) + " (" + g.device + "): grasps no tissue of the " +
+        (a.nodes.empty() ? "anterior" : "posterior") + " leaflet (insertion " +
+        std::to_string(a.nodes.empty() ? g.anterior_insertion_mm : g.posterior_insertion_mm) +
+        " mm): the leaflets are too short at the site to reach the device");
+  }
+  // Ties: each grasped cross-section to the two nearest of the other band (offset along the line,
+  // distance from the free edge), at the distance they have when both bands lie flat face to
+  // face, spacer (at least the contact distance) between their atrial surfaces.
+  const double gap = 0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) +
+                     std::max(clip.spacer_mm, opt.contact.contact_mm);
+  std::set<std::pair<int, int>> pairs;
+  auto tie = [&](const Band& from, const Band& to, bool from_anterior) {
+    for (size_t i = 0; i < from.nodes.size(); ++i) {
+      std::vector<std::pair<double, size_t>> d;
+      for (size_t j = 0; j < to.nodes.size(); ++j) {
+        d.emplace_back(std::hypot(from.along[i] - to.along[j], from.from_edge[i] - to.from_edge[j]),
+                       j);
+      }
+      std::sort(d.begin(), d.end());
+      for (size_t k = 0; k < std::min<size_t>(2, d.size()); ++k) {
+        const int ai = from_anterior ? from.nodes[i] : to.nodes[d[k].second];
+        const int pi = from_anterior ? to.nodes[d[k].second] : from.nodes[i];
+        if (!pairs.insert({ai, pi}).second) continue;
+        SceneSpring sp;
+        sp.a = cross_section(model, ai);
+        sp.b = cross_section(model, pi);
+        sp.stiffness = clip.stiffness_n_per_mm;
+        sp.rest_length = std::hypot(gap, d[k].first);
+        sp.clip = index;
+        sp.bilateral = true;
+        sc->springs.push_back(sp);
+      }
+    }
+  };
+  tie(a, p, true);
+  tie(p, a, false);
+  g.ties = static_cast<int>(pairs.size());
+  sc->grasps.push_back(g);
+}
+
+namespace {}  // namespace
 
 double ClosureScene::observed_time(double tau) const {
   // After the closure (settling) the boundary stays where the closed frame has it.
@@ -178,16 +299,27 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
     sc.chordae.push_back(ch);
   }
 
-  // Clips: between the cross-sections at the two sites, held at the distance of the two
-  // cross-sections' mid-planes when their atrial surfaces are the contact distance apart.
-  for (const ClipOptions& clip : opt.clips) {
+  // Clips: the paper's spring between the cross-sections at the two sites, held at the distance
+  // of the two cross-sections' mid-planes when their atrial surfaces are the contact distance
+  // apart; or a device grasping a band of each leaflet (add_device_clip).
+  for (size_t c = 0; c < opt.clips.size(); ++c) {
+    const ClipOptions& clip = opt.clips[c];
+    if (clip.width_mm > 0) {
+      add_device_clip(seq, opt, static_cast<int>(c), &sc);
+      continue;
+    }
     SceneSpring sp;
     sp.a = cross_section(model, nearest_surface_node(model, clip.anterior_s, clip.anterior_t));
     sp.b = cross_section(model, nearest_surface_node(model, clip.posterior_s, clip.posterior_t));
     sp.stiffness = clip.stiffness_n_per_mm;
     sp.rest_length =
         0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) + opt.contact.contact_mm;
+    sp.clip = static_cast<int>(c);
     sc.springs.push_back(sp);
+    ClipGrasp g;
+    g.device = clip.device.empty() ? "spring" : clip.device;
+    g.anterior_nodes = g.posterior_nodes = g.ties = 1;
+    sc.grasps.push_back(g);
   }
 
   // Prescribed nodes follow the displacement of their annulus grid points.

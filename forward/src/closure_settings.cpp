@@ -140,41 +140,54 @@ const std::map<std::string, Field>& fields() {
                      }
                    },
                    [](const ClosureOptions& o) { return std::string(name(o.solver.kind)); }};
-    // A list: clips as "s_a,t_a,s_p,t_p[,k];...".
-    m["clips"] = {[](ClosureOptions& o, const std::string& k, const std::string& v) {
-                    o.clips.clear();
-                    std::stringstream all(v);
-                    std::string one;
-                    while (std::getline(all, one, ';')) {
-                      if (one.empty()) continue;
-                      std::vector<double> x;
-                      std::stringstream parts(one);
-                      std::string item;
-                      while (std::getline(parts, item, ',')) x.push_back(to_double(k, item));
-                      if (x.size() != 4 && x.size() != 5) {
-                        throw Error("--set " + k +
-                                    ": a clip is s_anterior,t_anterior,"
-                                    "s_posterior,t_posterior[,stiffness N/mm], got '" +
-                                    one + "'");
-                      }
-                      ClipOptions c;
-                      c.anterior_s = x[0];
-                      c.anterior_t = x[1];
-                      c.posterior_s = x[2];
-                      c.posterior_t = x[3];
-                      if (x.size() == 5) c.stiffness_n_per_mm = x[4];
-                      o.clips.push_back(c);
-                    }
-                  },
-                  [](const ClosureOptions& o) {
-                    std::string out;
-                    for (const ClipOptions& c : o.clips) {
-                      out += (out.empty() ? "" : ";") + str(c.anterior_s) + "," +
-                             str(c.anterior_t) + "," + str(c.posterior_s) + "," +
-                             str(c.posterior_t) + "," + str(c.stiffness_n_per_mm);
-                    }
-                    return out;
-                  }};
+    // A list: clips as "s_a,t_a,s_p,t_p[,k[,width,arm,spacer[,insertion[,device]]]];...".
+    m["clips"] = {
+        [](ClosureOptions& o, const std::string& k, const std::string& v) {
+          o.clips.clear();
+          std::stringstream all(v);
+          std::string one;
+          while (std::getline(all, one, ';')) {
+            if (one.empty()) continue;
+            std::vector<std::string> parts;
+            std::stringstream ps(one);
+            std::string item;
+            while (std::getline(ps, item, ',')) parts.push_back(item);
+            const size_t n = parts.size();
+            if (n != 4 && n != 5 && n != 8 && n != 9 && n != 10) {
+              throw Error("--set " + k +
+                          ": a clip is s_anterior,t_anterior,s_posterior,t_posterior"
+                          "[,stiffness N/mm[,width,arm length,spacer mm[,insertion "
+                          "mm[,device]]]], got '" +
+                          one + "'");
+            }
+            ClipOptions c;
+            c.anterior_s = to_double(k, parts[0]);
+            c.anterior_t = to_double(k, parts[1]);
+            c.posterior_s = to_double(k, parts[2]);
+            c.posterior_t = to_double(k, parts[3]);
+            if (n >= 5) c.stiffness_n_per_mm = to_double(k, parts[4]);
+            if (n >= 8) {
+              c.width_mm = to_double(k, parts[5]);
+              c.arm_length_mm = to_double(k, parts[6]);
+              c.spacer_mm = to_double(k, parts[7]);
+            }
+            if (n >= 9) c.insertion_mm = to_double(k, parts[8]);
+            if (n == 10) c.device = parts[9];
+            o.clips.push_back(c);
+          }
+        },
+        [](const ClosureOptions& o) {
+          std::string out;
+          for (const ClipOptions& c : o.clips) {
+            out += (out.empty() ? "" : ";") + str(c.anterior_s) + "," + str(c.anterior_t) + "," +
+                   str(c.posterior_s) + "," + str(c.posterior_t) + "," + str(c.stiffness_n_per_mm);
+            if (c.width_mm > 0) {
+              out += "," + str(c.width_mm) + "," + str(c.arm_length_mm) + "," + str(c.spacer_mm) +
+                     "," + str(c.insertion_mm) + (c.device.empty() ? "" : "," + c.device);
+            }
+          }
+          return out;
+        }};
     dbl("clip_closing_s", [](ClosureOptions& o) -> double& { return o.clip_closing_s; });
     return m;
   }();

@@ -59,6 +59,13 @@ bool ClosureOptions::is_valid(std::string* error) const {
       return bad("a clip joins the anterior (s < 0.5) and the posterior (s >= 0.5) leaflet");
     if (!(c.stiffness_n_per_mm > 0 && c.stiffness_n_per_mm < 1e4))
       return bad("clip stiffness must be in (0, 1e4) N/mm");
+    if (!(c.width_mm >= 0 && c.width_mm <= 30))
+      return bad("clip width must be in [0, 30] mm (0: the paper's spring)");
+    if (c.width_mm > 0 && !(c.arm_length_mm > 0 && c.arm_length_mm <= 30))
+      return bad("a clip device's arm length must be in (0, 30] mm");
+    if (!(c.spacer_mm >= 0 && c.spacer_mm <= 20)) return bad("clip spacer must be in [0, 20] mm");
+    if (!(c.insertion_mm >= 0 && c.insertion_mm <= 30))
+      return bad("clip insertion must be in [0, 30] mm (0: from the geometry)");
   }
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
@@ -230,6 +237,8 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
         integrator.leaflet_surfaces(state, opt.orifice_refine);
     OrificeOptions oo;
     oo.seal_mm = orifice_seal_mm(opt.contact);
+    for (const ClipGrasp& g : integrator.grasps())
+      if (g.line_end > g.line_begin) oo.blocked.emplace_back(g.line_begin, g.line_end);
     result.orifice =
         measure_regurgitant_orifice(result.orifice_surface, oo, &result.orifice_lv_surface);
     orifice_s = seconds_since(t_orifice);

@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <set>
 #include <sstream>
+#include <tuple>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/forward/clip_device.h"
 #include "parallel_indices.h"
 
 namespace mvtwin::inverse {
@@ -14,16 +18,39 @@ forward::ClipOptions clip_options(const ClipSite& s) {
   c.anterior_s = 0.5 * s.position;
   c.posterior_s = 1.0 - 0.5 * s.position;
   c.anterior_t = c.posterior_t = s.depth;
+  if (s.device != "spring") {
+    const forward::ClipDevice& d = forward::clip_device(s.device);
+    c.width_mm = d.width_mm;
+    c.arm_length_mm = d.arm_length_mm;
+    c.spacer_mm = d.spacer_mm;
+    c.insertion_mm = s.insertion_mm;
+    c.device = d.name;
+    c.anterior_t = c.posterior_t = 1.0;
+  } else {
+    c.device = "spring";
+  }
   return c;
 }
 
-std::vector<ClipSite> parse_clip_sites(const std::string& text) {
+std::string describe_sites(const std::vector<ClipSite>& sites) {
+  std::string out;
+  for (const ClipSite& s : sites) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%s at %.2f", s.device.c_str(), s.position);
+    out += (out.empty() ? "" : "; ") + std::string(b);
+  }
+  return out.empty() ? "no clip" : out;
+}
+
+std::vector<ClipSite> parse_clip_sites(const std::string& text, const std::string& device) {
+  if (device != "spring") forward::clip_device(device);  // refuses an unknown name
   std::vector<ClipSite> out;
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ';')) {
     if (item.find_first_not_of(" \t") == std::string::npos) continue;
     ClipSite s;
+    s.device = device == "spring" ? device : forward::clip_device(device).name;
     std::stringstream is(item);
     std::string a, b;
     std::getline(is, a, ',');
@@ -57,6 +84,7 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   q.reason = r.summary.reason;
   if (r.orifice) q.orifice = *r.orifice;
   q.clip_gap_mm = r.clip_gap_end_mm;
+  q.clip_grasps = r.clip_grasps;
   return q;
 }
 
@@ -82,18 +110,73 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
   return out;
 }
 
-std::vector<std::vector<ClipSite>> clip_candidates(bool pairs) {
+std::vector<std::vector<ClipSite>> clip_candidates(bool pairs,
+                                                   const std::vector<std::string>& devices) {
   std::vector<double> pos;
   for (int k = 2; k <= 8; ++k) pos.push_back(0.1 * k);
   std::vector<std::vector<ClipSite>> out;
-  for (double p : pos) out.push_back({ClipSite{p, 1.0}});
+  for (const std::string& d : devices) {
+    for (double p : pos) out.push_back({ClipSite{p, 1.0, d}});
+  }
   if (pairs) {
-    for (size_t i = 0; i < pos.size(); ++i)
-      for (size_t j = i + 1; j < pos.size(); ++j)
-        if (pos[j] - pos[i] >= 0.2 - 1e-9)
-          out.push_back({ClipSite{pos[i], 1.0}, ClipSite{pos[j], 1.0}});
+    for (const std::string& d : devices) {
+      for (size_t i = 0; i < pos.size(); ++i)
+        for (size_t j = i + 1; j < pos.size(); ++j)
+          if (pos[j] - pos[i] >= 0.2 - 1e-9)
+            out.push_back({ClipSite{pos[i], 1.0, d}, ClipSite{pos[j], 1.0, d}});
+    }
   }
   return out;
+}
+
+std::vector<std::vector<ClipSite>> pairs_around(const std::vector<std::vector<ClipSite>>& singles) {
+  std::vector<std::vector<ClipSite>> out;
+  std::set<std::tuple<std::string, long, long>> seen;
+  for (const auto& one : singles) {
+    if (one.size() != 1) continue;
+    const ClipSite& a = one.front();
+    for (int k = 2; k <= 8; ++k) {
+      const double p = 0.1 * k;
+      if (std::abs(p - a.position) < 0.2 - 1e-9) continue;
+      ClipSite b = a;
+      b.position = p;
+      const ClipSite& lo = a.position < p ? a : b;
+      const ClipSite& hi = a.position < p ? b : a;
+      const auto key =
+          std::make_tuple(a.device, std::lround(100 * lo.position), std::lround(100 * hi.position));
+      if (!seen.insert(key).second) continue;
+      out.push_back({lo, hi});
+    }
+  }
+  return out;
+}
+
+ClipFlags clip_flags(const std::vector<forward::ClipGrasp>& grasps) {
+  ClipFlags f;
+  bool any = false;
+  for (const forward::ClipGrasp& g : grasps) {
+    if (g.line_end <= g.line_begin) continue;  // the paper's spring: no arm
+    const double m = std::min(g.anterior_insertion_mm, g.posterior_insertion_mm);
+    f.min_insertion_mm = any ? std::min(f.min_insertion_mm, m) : m;
+    any = true;
+  }
+  f.detachment_risk = any && f.min_insertion_mm < kMinInsertionMm;
+  return f;
+}
+
+EverestCriteria everest_criteria(const RegurgitantOrifice& o) {
+  EverestCriteria e;
+  e.coaptation_length_mm = o.coaptation_length_mm;
+  e.coaptation_depth_mm = o.coaptation_depth_mm;
+  if (!o.openings.empty()) {
+    e.flail_gap_mm = o.openings.front().max_gap_mm;
+    e.flail_width_mm = o.openings.front().length_mm;
+  }
+  e.coaptation_length_ok = e.coaptation_length_mm >= 2.0;
+  e.coaptation_depth_ok = std::isfinite(e.coaptation_depth_mm) && e.coaptation_depth_mm < 11.0;
+  e.flail_gap_ok = e.flail_gap_mm < 10.0;
+  e.flail_width_ok = e.flail_width_mm < 15.0;
+  return e;
 }
 
 void rank_by_residual_orifice(std::vector<ClipScenario>* s) {

@@ -1,5 +1,7 @@
 #pragma once
+#include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -29,6 +31,9 @@ struct OrificeOptions {
   /// Share of the coaptation line, centred, over which coaptation length and depth are taken
   /// (the commissural ends are left out, as in echo's A2-P2 measurement).
   double central_fraction = 0.7;
+  /// Stretches of the coaptation line [begin, end] (as Opening::begin) that a clip device's
+  /// body fills: sealed whatever the gap (a spacer holds the leaflets apart but blocks the flow).
+  std::vector<std::pair<double, double>> blocked;
 
   bool is_valid(std::string* error) const;
 };

@@ -33,4 +33,12 @@ void chorda_gradient(const ChordaLaw& law, double rest_length, const Eigen::Vect
                      const Eigen::Vector3d& b, Eigen::Matrix<double, 6, 1>* g,
                      Eigen::Matrix<double, 6, 6>* H, double* energy = nullptr);
 
+/// A two-way linear spring between points a and b (a clip device's tie): force k (l - L0) along
+/// b - a, pulling when stretched and pushing when compressed, energy k (l - L0)^2 / 2; the same
+/// layout as chorda_gradient. H is the Gauss-Newton tangent k n n^T plus the geometric term
+/// (T / l)(I - n n^T) only while the tie pulls (T > 0), so that it stays positive semidefinite.
+void tie_gradient(double k, double rest_length, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                  Eigen::Matrix<double, 6, 1>* g, Eigen::Matrix<double, 6, 6>* H,
+                  double* energy = nullptr);
+
 }  // namespace mvtwin::forward

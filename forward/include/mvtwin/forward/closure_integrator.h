@@ -117,7 +117,8 @@ class ClosureIntegrator {
                          Eigen::VectorXd* stress_mpa) const;
   /// Distance between the two sites of clip c (0-based) at positions x, mm.
   double clip_gap(int c, const Eigen::VectorXd& x) const;
-  int num_clips() const { return static_cast<int>(cables_.size()) - first_spring_; }
+  int num_clips() const { return static_cast<int>(scene_.grasps.size()); }
+  const std::vector<ClipGrasp>& grasps() const { return scene_.grasps; }
 
   /// Work counters so far (steps and halvings are the driver's): crossings, Newton iterations,
   /// time per part, contact and linear-solver statistics. Interpenetration is measured by
@@ -137,6 +138,8 @@ class ClosureIntegrator {
     double rest = 0.0;
     const ChordaLaw* law = nullptr;  // null: linear spring of stiffness k
     double k = 0.0;
+    bool bilateral = false;  // a linear spring that pushes as well as pulls
+    int clip = -1;           // the clip of a spring
   };
   double cable_rest(size_t c, double tau) const;
   Eigen::Vector3d mean_of(const std::vector<int>& nodes, const Eigen::VectorXd& at) const;

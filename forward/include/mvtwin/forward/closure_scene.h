@@ -6,6 +6,7 @@
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/chorda.h"
+#include "mvtwin/forward/clip_device.h"
 #include "mvtwin/forward/transversely_isotropic.h"
 #include "mvtwin/forward/valve_model.h"
 
@@ -25,11 +26,13 @@ struct SceneChorda {
 };
 
 /// A two-point spring between the mean points of two node sets (a MitraClip, Mansi et al. 2012,
-/// Sec. 2.4).
+/// Sec. 2.4, or one tie of a clip device).
 struct SceneSpring {
   std::vector<int> a, b;
   double stiffness = 0.0;    ///< N/mm
   double rest_length = 0.0;  ///< mm
+  int clip = 0;              ///< the clip it belongs to
+  bool bilateral = false;    ///< pushes as well as pulls (a device's ties); else tension only
 };
 
 /// A node whose motion is prescribed: it follows the mean displacement of annulus columns ua
@@ -57,6 +60,7 @@ class ClosureScene {
   std::vector<TransverselyIsotropic> leaflet_material;  ///< [0] anterior, [1] posterior
   std::vector<SceneChorda> chordae;
   std::vector<SceneSpring> springs;
+  std::vector<ClipGrasp> grasps;  ///< per clip
   std::vector<PrescribedNode> prescribed;
   std::vector<PressureFace> pressure_faces;
   double peak_pressure_mpa = 0.0;
@@ -89,6 +93,12 @@ class ClosureScene {
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> annulus_;  // per frame
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus_ed_;
 };
+
+/// Adds clip `index` of the options, a device (ClipOptions::width_mm > 0), to the scene: its
+/// grasped bands, ties and ClipGrasp. Throws mvtwin::Error when a leaflet has no tissue within
+/// the device's reach.
+void add_device_clip(const ValveSequence& sequence, const ClosureOptions& options, int index,
+                     ClosureScene* scene);
 
 /// Builds the scene. Throws mvtwin::Error for invalid options, a sequence without an
 /// end-diastolic frame before a first closed one, or a model that cannot be built.

@@ -11,6 +11,7 @@
 #include "mvtwin/core/simulation_file.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
+#include "mvtwin/forward/clip_device.h"
 #include "mvtwin/forward/self_contact.h"
 #include "mvtwin/forward/step_solver.h"
 #include "mvtwin/forward/valve_model.h"
@@ -18,16 +19,6 @@
 namespace mvtwin::forward {
 
 class ClosureScene;
-
-/// A MitraClip (Mansi et al. 2012, Sec. 2.4): a stiff tension-only spring between a site on each
-/// leaflet, in grid coordinates (s in [0, 1) around the annulus from the anterolateral commissure,
-/// anterior for s < 0.5; t from the annulus (0) to the free edge (1)). It holds the two
-/// cross-sections so that their atrial surfaces are the contact distance apart.
-struct ClipOptions {
-  double anterior_s = 0.25, anterior_t = 1.0;
-  double posterior_s = 0.75, posterior_t = 1.0;
-  double stiffness_n_per_mm = 9.80665;  ///< 1000 gf/mm (Mansi et al. 2012)
-};
 
 /// Options of a closure simulation (Mansi et al. 2012, Sec. 2.3). Units: s, t/mm^3, 1/s.
 struct ClosureOptions {
@@ -195,6 +186,8 @@ struct ClosureResult {
   /// Elements the inversion guard held at some step (ascending): co-rotational elasticity alone
   /// would have let them collapse (the FEBio export gives them a law that cannot).
   std::vector<int> guarded_elements;
+  /// Per clip: how it grasped the leaflets.
+  std::vector<ClipGrasp> clip_grasps;
   /// The closed valve's regurgitant orifice (ClosureOptions::orifice_refine; sealed where the
   /// leaflets are within the contact law's reach, orifice_seal_mm) and the fine atrial and
   /// ventricular surfaces it was measured on. Empty when not measured or when the simulation

@@ -8,17 +8,26 @@
 
 namespace mvtwin::inverse {
 
-/// A clip site on the coaptation line: position along it (0 = anterolateral commissure,
-/// 1 = posteromedial) and grasp depth (1 = the free edges, smaller = deeper towards the
-/// annulus). The anterior site is at s = position / 2, the posterior one opposite it at
-/// s = 1 - position / 2 (forward::ClipOptions).
+/// A clip on the coaptation line: position along it (0 = anterolateral commissure,
+/// 1 = posteromedial) and the device (forward::clip_devices(); "spring": the paper's clip, a
+/// stiff spring between one cross-section of each leaflet, then at `depth`: 1 = the free edges,
+/// smaller = deeper towards the annulus). The anterior site is at s = position / 2, the
+/// posterior one opposite it at s = 1 - position / 2 (forward::ClipOptions). A device grasps
+/// as deep as the leaflets insert (insertion_mm > 0 overrides the geometry).
 struct ClipSite {
   double position = 0.5;
   double depth = 1.0;
+  std::string device = "spring";
+  double insertion_mm = 0.0;
 };
+/// Throws mvtwin::Error for an unknown device.
 forward::ClipOptions clip_options(const ClipSite& site);
-/// Parses "u,v[;u,v...]" (v optional, default 1). Throws mvtwin::Error naming the problem.
-std::vector<ClipSite> parse_clip_sites(const std::string& text);
+/// "XTW at 0.50" (with ";" between several).
+std::string describe_sites(const std::vector<ClipSite>& sites);
+/// Parses "u,v[;u,v...]" (v optional, default 1), each with `device`. Throws mvtwin::Error naming
+/// the problem.
+std::vector<ClipSite> parse_clip_sites(const std::string& text,
+                                       const std::string& device = "spring");
 
 /// The closed valve's quality at the end of a closure simulation.
 struct ClosureQuality {
@@ -27,8 +36,35 @@ struct ClosureQuality {
   /// The regurgitant orifice of the closed valve (ClosureResult::orifice; all zero when the
   /// simulation failed or did not measure it).
   RegurgitantOrifice orifice;
-  std::vector<double> clip_gap_mm;  ///< per clip, at the end
+  std::vector<double> clip_gap_mm;              ///< per clip, at the end
+  std::vector<forward::ClipGrasp> clip_grasps;  ///< per clip: insertion, grasped tissue
 };
+
+/// What a clip plan warns about (docs/clip-devices.md).
+struct ClipFlags {
+  /// A leaflet inserts less than kMinInsertionMm into a device's arm: single-leaflet device
+  /// attachment risk.
+  bool detachment_risk = false;
+  double min_insertion_mm = 0;  ///< the shallowest insertion of the clips (0 for the spring)
+};
+/// The insertion below which a grasp is flagged, mm: an mvtwin assumption (a third of the
+/// 12 mm arm), not a published threshold; the insertions themselves are reported.
+inline constexpr double kMinInsertionMm = 4.0;
+ClipFlags clip_flags(const std::vector<forward::ClipGrasp>& grasps);
+
+/// The EVEREST anatomic criteria for edge-to-edge repair (Feldman et al. 2009, J Am Coll Cardiol
+/// 54:686; EVEREST II, Feldman et al. 2011, N Engl J Med 364:1395), on the closed valve without a
+/// clip: coaptation length >= 2 mm and depth < 11 mm (functional MR), flail gap < 10 mm and
+/// flail width < 15 mm (taken as the widest gap and the length of the largest opening).
+struct EverestCriteria {
+  double coaptation_length_mm = 0, coaptation_depth_mm = 0, flail_gap_mm = 0, flail_width_mm = 0;
+  bool coaptation_length_ok = false, coaptation_depth_ok = false, flail_gap_ok = false,
+       flail_width_ok = false;
+  bool all_ok() const {
+    return coaptation_length_ok && coaptation_depth_ok && flail_gap_ok && flail_width_ok;
+  }
+};
+EverestCriteria everest_criteria(const RegurgitantOrifice& without_clip);
 ClosureQuality closure_quality(const forward::ClosureResult& r);
 
 /// One clip scenario: the closure simulated with the clips (Mansi et al. 2012, Sec. 2.4: clipped on
@@ -47,8 +83,14 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
                                          int jobs);
 
 /// Candidate sites along the coaptation line at the free edges: single clips at positions
-/// 0.2, 0.3, ..., 0.8, and (with pairs) every two of them at least 0.2 apart.
-std::vector<std::vector<ClipSite>> clip_candidates(bool pairs);
+/// 0.2, 0.3, ..., 0.8, and (with pairs) every two of them at least 0.2 apart, each with every
+/// device of `devices` (both clips of a pair the same device).
+std::vector<std::vector<ClipSite>> clip_candidates(bool pairs,
+                                                   const std::vector<std::string>& devices = {
+                                                       "spring"});
+/// Pairs made from single clips: each given single with a second clip of its device at every
+/// candidate position at least 0.2 away (without repeats).
+std::vector<std::vector<ClipSite>> pairs_around(const std::vector<std::vector<ClipSite>>& singles);
 
 /// Ranks scenarios: converged first, then by effective regurgitant orifice (smallest first).
 void rank_by_residual_orifice(std::vector<ClipScenario>* scenarios);
