@@ -68,6 +68,39 @@ std::string quality_line(const inverse::ClosureQuality& q) {
   return s;
 }
 
+json opening_json(const inverse::ClipOpening& o) {
+  if (!o.computed) return json(nullptr);
+  if (!o.converged) return {{"converged", false}, {"reason", o.reason}};
+  return {{"converged", true},
+          {"mva_cm2", o.mva_cm2},
+          {"openings_cm2", o.openings_cm2},
+          {"gradient_mmhg", o.gradient_mmhg},
+          {"stenosis", o.stenosis}};
+}
+
+std::string opening_line(const inverse::ClipOpening& o) {
+  if (!o.computed) return "";
+  if (!o.converged) return "; diastole failed: " + o.reason;
+  char b[64];
+  std::snprintf(b, sizeof b, "MVA %.2f cm^2", o.mva_cm2);
+  return std::string("; open: ") + b + " (" + std::to_string(o.openings_cm2.size()) + " opening" +
+         (o.openings_cm2.size() == 1 ? "" : "s") + "), mean gradient " + f1(o.gradient_mmhg) +
+         " mmHg" + (o.stenosis ? " (STENOSIS)" : "");
+}
+
+json loads_json(const inverse::GraspLoads& g) {
+  return {{"peak_stress_kpa", g.stress_p95_after_kpa},
+          {"peak_stress_before_kpa", g.stress_p95_before_kpa},
+          {"marginal_chorda_tension_n", g.marginal_tension_after_n},
+          {"marginal_chorda_tension_before_n", g.marginal_tension_before_n}};
+}
+
+std::string loads_line(const inverse::GraspLoads& g) {
+  return "; stress near the grasp " + f1(g.stress_p95_before_kpa) + " -> " +
+         f1(g.stress_p95_after_kpa) + " kPa (95th percentile), largest marginal chorda " +
+         f1(g.marginal_tension_before_n) + " -> " + f1(g.marginal_tension_after_n) + " N";
+}
+
 json sites_json(const std::vector<inverse::ClipSite>& sites) {
   json positions = json::array();
   for (const auto& s : sites) positions.push_back(s.position);
@@ -154,8 +187,11 @@ int run_clip(const ClipArgs& a) {
   std::cout << "  simulating " << cands.size() << " closures (" << a.jobs << " at once) ..."
             << std::endl;
   std::vector<inverse::ClipScenario> res = inverse::simulate_clips(p, par, o, cands, a.jobs);
+  // The valve opened in diastole: without a clip, and (below) the chosen or best options.
+  const forward::DiastoleOptions diastole;
+  inverse::open_clips(p, par, o, diastole, 1, a.jobs, &res);
   const inverse::ClipScenario before = res.front();
-  std::cout << "before: " << quality_line(before.quality) << "\n";
+  std::cout << "before: " << quality_line(before.quality) << opening_line(before.opening) << "\n";
   const inverse::EverestCriteria everest = inverse::everest_criteria(before.quality.orifice);
   if (before.quality.converged) std::cout << everest_line(everest) << "\n";
   json j{{"patient_id", p.id},
@@ -163,7 +199,13 @@ int run_clip(const ClipArgs& a) {
          {"parameters_from", source},
          {"options", forward::describe_options(o)},
          {"before", quality_json(before.quality)},
+         {"before_open", opening_json(before.opening)},
          {"everest", everest_json(everest)},
+         {"diastole",
+          {{"transmitral_mmhg", diastole.transmitral_mmhg},
+           {"stroke_volume_ml", diastole.stroke_volume_ml},
+           {"filling_time_s", diastole.filling_time_s},
+           {"gradient", "Gorlin, mitral constant 37.7"}}},
          {"provenance", provenance(a.command_line)}};
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
@@ -182,21 +224,30 @@ int run_clip(const ClipArgs& a) {
       for (auto& sc : inverse::simulate_clips(p, par, o, pairs, a.jobs)) clipped.push_back(sc);
       inverse::rank_by_residual_orifice(&clipped);
     }
-    std::cout << "options ranked by the effective regurgitant orifice left:\n";
+    // The best options opened in diastole (stenosis decides whether a clip may be placed).
+    inverse::open_clips(p, par, o, diastole, static_cast<size_t>(a.open_best), a.jobs, &clipped);
+    std::cout << "options ranked by the effective regurgitant orifice left (the best "
+              << a.open_best << " also opened in diastole):\n";
     json ranked = json::array();
     int rank = 0;
     for (const auto& s : clipped) {
+      const inverse::GraspLoads loads = inverse::grasp_loads(before.quality, s.quality);
       std::cout << "  " << ++rank << ". " << inverse::describe_sites(s.sites) << ": "
-                << quality_line(s.quality) << "\n";
+                << quality_line(s.quality) << opening_line(s.opening)
+                << (s.quality.converged ? loads_line(loads) : "") << "\n";
       json r = sites_json(s.sites);
       r["after"] = quality_json(s.quality);
+      r["open"] = opening_json(s.opening);
+      if (s.quality.converged) r.update(loads_json(loads));
       ranked.push_back(r);
     }
     j["ranked"] = ranked;
   } else {
+    inverse::open_clips(p, par, o, diastole, 1, a.jobs, &clipped);
     const auto& s = clipped.front();
+    const inverse::GraspLoads loads = inverse::grasp_loads(before.quality, s.quality);
     std::cout << "after " << inverse::describe_sites(s.sites) << ": " << quality_line(s.quality)
-              << "\n";
+              << opening_line(s.opening) << (s.quality.converged ? loads_line(loads) : "") << "\n";
     for (size_t c = 0; c < s.quality.clip_gap_mm.size(); ++c)
       std::cout << "  clip " << c + 1 << ": grasped leaflets " << f1(s.quality.clip_gap_mm[c])
                 << " mm apart at the end (atrial surfaces)\n";
@@ -205,6 +256,13 @@ int run_clip(const ClipArgs& a) {
     if (s.quality.converged) j.update(orifice_json(s.quality.orifice));
     const inverse::ClipFlags f = inverse::clip_flags(s.quality.clip_grasps);
     j["detachment_risk"] = f.detachment_risk;
+    j["open"] = opening_json(s.opening);
+    if (s.quality.converged) j.update(loads_json(loads));
+    if (s.opening.converged) {
+      j["mva_cm2"] = s.opening.mva_cm2;
+      j["gradient_mmhg"] = s.opening.gradient_mmhg;
+      j["stenosis"] = s.opening.stenosis;
+    }
   }
   // The chosen (or best) scenario as a full simulation file and VTK.
   if (!a.out.empty() || !a.vtk.empty()) {
@@ -233,10 +291,12 @@ int run_clip(const ClipArgs& a) {
 void register_clip(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("clip", "Predict the closure after an edge-to-edge clip");
   cmd->footer(
-      "Examples:\n  mvtwin clip observed.h5 --params calib.h5 --at 0.5,1 --out clipped.h5\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --at \"0.35,1;0.65,1\" --out two_clips.h5\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --suggest --pairs --jobs 2\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at 0.45 --out ntw.h5\n"
+      "Examples:\n  mvtwin clip observed.h5 --params calib.h5 --at 0.5 --out clipped.h5\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at \"0.35;0.65\" --out two.h5\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --suggest --devices XTW --jobs 2\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --suggest --pairs --jobs 2   # long: 6 devices\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --device spring --at 0.5,1   # the paper's "
+      "clip\n"
       "A site is a position along the coaptation line (0 = anterolateral commissure, 1 =\n"
       "posteromedial). The device (--device, default XTW; docs/clip-devices.md) grasps a band\n"
       "of each leaflet as wide as its arms and as deep as the leaflet inserts (from the\n"
@@ -269,6 +329,10 @@ void register_clip(CLI::App& app, Context& ctx) {
   cmd->add_option("--vtk", a->vtk, "directory for the clipped closure (ParaView)");
   cmd->add_flag("--suggest", a->suggest, "search sites along the coaptation line and rank them");
   cmd->add_flag("--pairs", a->pairs, "with --suggest: also pairs of clips");
+  cmd->add_option("--open-best", a->open_best,
+                  "with --suggest: how many of the best options to open in diastole (MVA)")
+      ->default_val(a->open_best)
+      ->check(CLI::Range(0, 1000));
   cmd->add_option("--jobs", a->jobs, "simulations at once")
       ->default_val(2)
       ->check(CLI::Range(1, 256));

@@ -17,6 +17,7 @@ struct ClipArgs : CommandArgs {
   std::string vtk;
   bool suggest = false;
   bool pairs = false;
+  int open_best = 5;
   bool force = false;
   int jobs = 2;
   std::vector<std::string> sets;

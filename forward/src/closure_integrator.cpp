@@ -493,6 +493,17 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
   sum.guarded_elements = static_cast<int>(rot_.guards.size());
   result->guarded_elements.assign(ever_guarded_.begin(), ever_guarded_.end());
   result->clip_grasps = scene_.grasps;
+  // Chordae tensions at the end (the tips where the boundary ends).
+  result->chorda_tension_n.clear();
+  result->chorda_marginal.clear();
+  for (int c = 0; c < first_spring_; ++c) {
+    const Cable& cb = cables_[static_cast<size_t>(c)];
+    const SceneChorda& sc = scene_.chordae[static_cast<size_t>(c)];
+    const Eigen::Vector3d tip = scene_.papillary_tip(cb.tip, scene_.duration());
+    const double l = (mean_of(cb.a, result->positions) - tip).norm();
+    result->chorda_tension_n.push_back(cb.law->area * cb.law->stress((l - cb.rest) / cb.rest));
+    result->chorda_marginal.push_back(sc.marginal ? 1 : 0);
+  }
   const StepSolver::Stats& ls = linear_.stats();
   sum.pcg_fallbacks = ls.pcg_fallbacks;
   sum.double_fallbacks = ls.double_fallbacks;

@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <tuple>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/forward/closure_simulation.h"
@@ -84,17 +85,37 @@ Band grasped_band(const ValveModel& m, double s_site, bool anterior, double widt
   return b;
 }
 
+/// Elements of the corner mesh with a corner within `margin` (unrolled plane, mm) of a node of
+/// `band` (surface nodes).
+std::vector<int> elements_near(const ValveModel& m, const std::vector<int>& band, double margin) {
+  std::vector<char> near(static_cast<size_t>(m.surface_nodes), 0);
+  for (int i = 0; i < m.surface_nodes; ++i) {
+    for (int b : band) {
+      double dx = m.surface_plane(i, 0) - m.surface_plane(b, 0);
+      dx -= m.perimeter * std::round(dx / m.perimeter);
+      if (std::hypot(dx, m.surface_plane(i, 1) - m.surface_plane(b, 1)) <= margin) {
+        near[static_cast<size_t>(i)] = 1;
+        break;
+      }
+    }
+  }
+  std::vector<int> out;
+  for (Eigen::Index e = 0; e < m.linear.T.rows(); ++e) {
+    for (int k = 0; k < 4; ++k) {
+      if (near[static_cast<size_t>(m.linear.T(e, k) % m.surface_nodes)]) {
+        out.push_back(static_cast<int>(e));
+        break;
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
-void add_device_clip(const ValveSequence& seq, const ClosureOptions& opt, int index,
-                     ClosureScene* sc) {
-  const ClipOptions& clip = opt.clips[static_cast<size_t>(index)];
-  const ValveModel& model = sc->model;
-  ClipGrasp g;
-  g.device = clip.device.empty() ? "device" : clip.device;
-  // Insertion from the geometry at the grasp: the leaflets span the annulus chord between the
-  // sites (first closed frame) to their meeting point, in proportion to their lengths
-  // (end-diastole); what is left of each inserts, up to the arm's length.
+std::pair<double, double> clip_insertion_mm(const ValveSequence& seq, const ClipOptions& clip) {
+  // The leaflets span the annulus chord between the sites (first closed frame) to their meeting
+  // point, in proportion to their lengths (end-diastole); what is left of each inserts.
   const LeafletGrid& ed = *seq.frames[static_cast<size_t>(seq.end_diastole)].la_surface;
   const auto closed =
       resample_closed_curve(seq.frames[static_cast<size_t>(seq.first_closed)].annulus, 512);
@@ -105,17 +126,31 @@ void add_device_clip(const ValveSequence& seq, const ClosureOptions& opt, int in
                Lp = ed.radial_length_at(clip.posterior_s);
   const double chord = (annulus_at(clip.anterior_s) - annulus_at(clip.posterior_s)).norm();
   const double excess = std::max(0.0, La + Lp - chord);
-  auto insertion = [&](double L) {
-    if (clip.insertion_mm > 0) return std::min(clip.insertion_mm, clip.arm_length_mm);
-    return std::min(clip.arm_length_mm, L * excess / (La + Lp));
+  auto insertion = [&](double L, double given) {
+    return std::min(clip.arm_length_mm, given > 0 ? given : L * excess / (La + Lp));
   };
-  g.anterior_insertion_mm = insertion(La);
-  g.posterior_insertion_mm = insertion(Lp);
+  return {insertion(La, clip.anterior_insertion_mm), insertion(Lp, clip.posterior_insertion_mm)};
+}
+
+void add_device_clip(const ValveSequence& seq, const ClosureOptions& opt, int index,
+                     ClosureScene* sc) {
+  const ClipOptions& clip = opt.clips[static_cast<size_t>(index)];
+  const ValveModel& model = sc->model;
+  ClipGrasp g;
+  g.device = clip.device.empty() ? "device" : clip.device;
+  std::tie(g.anterior_insertion_mm, g.posterior_insertion_mm) = clip_insertion_mm(seq, clip);
   const Band a = grasped_band(model, clip.anterior_s, true, clip.width_mm, g.anterior_insertion_mm);
   const Band p =
       grasped_band(model, clip.posterior_s, false, clip.width_mm, g.posterior_insertion_mm);
   g.anterior_nodes = static_cast<int>(a.nodes.size());
   g.posterior_nodes = static_cast<int>(p.nodes.size());
+  g.anterior_band = a.nodes;
+  g.posterior_band = p.nodes;
+  {
+    std::vector<int> both = a.nodes;
+    both.insert(both.end(), p.nodes.begin(), p.nodes.end());
+    g.region_elements = elements_near(model, both, kGraspStressMarginMm);
+  }
   // Its place on the coaptation line (anterior s / 0.5, posterior (1 - s) / 0.5).
   g.line_begin = 1.0;
   g.line_end = 0.0;
@@ -309,8 +344,10 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
       continue;
     }
     SceneSpring sp;
-    sp.a = cross_section(model, nearest_surface_node(model, clip.anterior_s, clip.anterior_t));
-    sp.b = cross_section(model, nearest_surface_node(model, clip.posterior_s, clip.posterior_t));
+    const int na = nearest_surface_node(model, clip.anterior_s, clip.anterior_t),
+              nb = nearest_surface_node(model, clip.posterior_s, clip.posterior_t);
+    sp.a = cross_section(model, na);
+    sp.b = cross_section(model, nb);
     sp.stiffness = clip.stiffness_n_per_mm;
     sp.rest_length =
         0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) + opt.contact.contact_mm;
@@ -319,6 +356,9 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
     ClipGrasp g;
     g.device = clip.device.empty() ? "spring" : clip.device;
     g.anterior_nodes = g.posterior_nodes = g.ties = 1;
+    g.anterior_band = {na};
+    g.posterior_band = {nb};
+    g.region_elements = elements_near(model, {na, nb}, kGraspStressMarginMm);
     sc.grasps.push_back(g);
   }
 

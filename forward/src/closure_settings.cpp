@@ -140,7 +140,8 @@ const std::map<std::string, Field>& fields() {
                      }
                    },
                    [](const ClosureOptions& o) { return std::string(name(o.solver.kind)); }};
-    // A list: clips as "s_a,t_a,s_p,t_p[,k[,width,arm,spacer[,insertion[,device]]]];...".
+    // A list: clips as "s_a,t_a,s_p,t_p[,k[,width,arm,spacer[,insertion_a,insertion_p[,device]]]]"
+    // separated by ";".
     m["clips"] = {
         [](ClosureOptions& o, const std::string& k, const std::string& v) {
           o.clips.clear();
@@ -153,11 +154,11 @@ const std::map<std::string, Field>& fields() {
             std::string item;
             while (std::getline(ps, item, ',')) parts.push_back(item);
             const size_t n = parts.size();
-            if (n != 4 && n != 5 && n != 8 && n != 9 && n != 10) {
+            if (n != 4 && n != 5 && n != 8 && n != 10 && n != 11) {
               throw Error("--set " + k +
                           ": a clip is s_anterior,t_anterior,s_posterior,t_posterior"
-                          "[,stiffness N/mm[,width,arm length,spacer mm[,insertion "
-                          "mm[,device]]]], got '" +
+                          "[,stiffness N/mm[,width,arm length,spacer mm[,anterior and posterior "
+                          "insertion mm[,device]]]], got '" +
                           one + "'");
             }
             ClipOptions c;
@@ -171,8 +172,11 @@ const std::map<std::string, Field>& fields() {
               c.arm_length_mm = to_double(k, parts[6]);
               c.spacer_mm = to_double(k, parts[7]);
             }
-            if (n >= 9) c.insertion_mm = to_double(k, parts[8]);
-            if (n == 10) c.device = parts[9];
+            if (n >= 10) {
+              c.anterior_insertion_mm = to_double(k, parts[8]);
+              c.posterior_insertion_mm = to_double(k, parts[9]);
+            }
+            if (n == 11) c.device = parts[10];
             o.clips.push_back(c);
           }
         },
@@ -183,7 +187,8 @@ const std::map<std::string, Field>& fields() {
                    str(c.posterior_s) + "," + str(c.posterior_t) + "," + str(c.stiffness_n_per_mm);
             if (c.width_mm > 0) {
               out += "," + str(c.width_mm) + "," + str(c.arm_length_mm) + "," + str(c.spacer_mm) +
-                     "," + str(c.insertion_mm) + (c.device.empty() ? "" : "," + c.device);
+                     "," + str(c.anterior_insertion_mm) + "," + str(c.posterior_insertion_mm) +
+                     (c.device.empty() ? "" : "," + c.device);
             }
           }
           return out;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <tuple>
 
@@ -64,8 +65,9 @@ bool ClosureOptions::is_valid(std::string* error) const {
     if (c.width_mm > 0 && !(c.arm_length_mm > 0 && c.arm_length_mm <= 30))
       return bad("a clip device's arm length must be in (0, 30] mm");
     if (!(c.spacer_mm >= 0 && c.spacer_mm <= 20)) return bad("clip spacer must be in [0, 20] mm");
-    if (!(c.insertion_mm >= 0 && c.insertion_mm <= 30))
-      return bad("clip insertion must be in [0, 30] mm (0: from the geometry)");
+    if (!(c.anterior_insertion_mm >= 0 && c.anterior_insertion_mm <= 30 &&
+          c.posterior_insertion_mm >= 0 && c.posterior_insertion_mm <= 30))
+      return bad("clip insertions must be in [0, 30] mm (0: from the geometry)");
   }
   if (newton_iterations < 1 || newton_iterations > 100)
     return bad("newton_iterations must be in 1..100");
@@ -250,6 +252,19 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
 }  // namespace
 
 double orifice_seal_mm(const SelfContactOptions& contact) { return contact.alarm_mm; }
+
+double stress_quantile_kpa(const ClosureResult& r, const std::vector<int>& elements, double q) {
+  std::vector<double> v;
+  for (int e : elements) {
+    if (e >= 0 && e < r.element_stress_mpa.size()) v.push_back(1000.0 * r.element_stress_mpa[e]);
+  }
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const double pos = std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1);
+  const size_t i = static_cast<size_t>(std::floor(pos));
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? (1.0 - f) * v[i] + f * v[i + 1] : v[i];
+}
 
 SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOptions& o,
                                         const ValveParameters& p) {

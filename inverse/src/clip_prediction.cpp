@@ -23,7 +23,7 @@ forward::ClipOptions clip_options(const ClipSite& s) {
     c.width_mm = d.width_mm;
     c.arm_length_mm = d.arm_length_mm;
     c.spacer_mm = d.spacer_mm;
-    c.insertion_mm = s.insertion_mm;
+    c.anterior_insertion_mm = c.posterior_insertion_mm = s.insertion_mm;
     c.device = d.name;
     c.anterior_t = c.posterior_t = 1.0;
   } else {
@@ -85,6 +85,9 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   if (r.orifice) q.orifice = *r.orifice;
   q.clip_gap_mm = r.clip_gap_end_mm;
   q.clip_grasps = r.clip_grasps;
+  q.element_stress_mpa = r.element_stress_mpa;
+  q.chorda_tension_n = r.chorda_tension_n;
+  q.chorda_marginal = r.chorda_marginal;
   return q;
 }
 
@@ -108,6 +111,34 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
     }
   });
   return out;
+}
+
+void open_clips(const Patient& patient, const ValveParameters& par,
+                const forward::ClosureOptions& options, const forward::DiastoleOptions& diastole,
+                size_t count, int jobs, std::vector<ClipScenario>* scenarios) {
+  const size_t n = std::min(count, scenarios->size());
+  parallel_indices(n, jobs, [&](size_t i) {
+    ClipScenario& sc = (*scenarios)[i];
+    forward::ClosureOptions o = options;
+    o.progress = nullptr;
+    o.clips.clear();
+    for (const ClipSite& s : sc.sites) o.clips.push_back(clip_options(s));
+    ClipOpening& op = sc.opening;
+    op.computed = true;
+    try {
+      const forward::DiastolicOpening d =
+          forward::simulate_diastole(patient.sequence, par, o, diastole);
+      op.converged = d.converged;
+      op.reason = d.reason;
+      op.mva_cm2 = d.mva_cm2;
+      op.gradient_mmhg = d.gradient_mmhg;
+      op.stenosis = d.stenosis;
+      op.openings_cm2 = d.openings_cm2;
+    } catch (const std::exception& e) {
+      op.converged = false;
+      op.reason = e.what();
+    }
+  });
 }
 
 std::vector<std::vector<ClipSite>> clip_candidates(bool pairs,
@@ -149,6 +180,29 @@ std::vector<std::vector<ClipSite>> pairs_around(const std::vector<std::vector<Cl
     }
   }
   return out;
+}
+
+GraspLoads grasp_loads(const ClosureQuality& before, const ClosureQuality& after) {
+  GraspLoads g;
+  auto quantile = [](const ClosureQuality& q, const std::vector<int>& elements) {
+    forward::ClosureResult r;
+    r.element_stress_mpa = q.element_stress_mpa;
+    return forward::stress_quantile_kpa(r, elements, 0.95);
+  };
+  for (const forward::ClipGrasp& c : after.clip_grasps) {
+    g.stress_p95_after_kpa = std::max(g.stress_p95_after_kpa, quantile(after, c.region_elements));
+    g.stress_p95_before_kpa =
+        std::max(g.stress_p95_before_kpa, quantile(before, c.region_elements));
+  }
+  auto largest = [](const ClosureQuality& q) {
+    double m = 0;
+    for (size_t c = 0; c < q.chorda_tension_n.size(); ++c)
+      if (q.chorda_marginal[c]) m = std::max(m, q.chorda_tension_n[c]);
+    return m;
+  };
+  g.marginal_tension_before_n = largest(before);
+  g.marginal_tension_after_n = largest(after);
+  return g;
 }
 
 ClipFlags clip_flags(const std::vector<forward::ClipGrasp>& grasps) {

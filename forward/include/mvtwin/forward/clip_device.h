@@ -28,10 +28,11 @@ struct ClipDevice {
 ///
 /// With a width it is a device (forward/clip_device.h): it grasps a band of each leaflet, width_mm
 /// wide along the coaptation line around the site and as deep from the free edge as the leaflet
-/// inserts into the arm (insertion_mm, or from the geometry at the grasp capped by arm_length_mm:
-/// ClipGrasp), and holds the two bands face to face, spacer_mm apart (at least the contact
-/// distance), by stiff two-way ties between facing cross-sections and their neighbours: the
-/// grasped tissue moves together and floats with the valve. The sites' t is not used.
+/// inserts into the arm (anterior_/posterior_insertion_mm, or from the geometry at the grasp
+/// capped by arm_length_mm: ClipGrasp), and holds the two bands face to face, spacer_mm apart (at
+/// least the contact distance), by stiff two-way ties between facing cross-sections and their
+/// neighbours: the grasped tissue moves together and floats with the valve. The sites' t is not
+/// used.
 struct ClipOptions {
   double anterior_s = 0.25, anterior_t = 1.0;
   double posterior_s = 0.75, posterior_t = 1.0;
@@ -39,8 +40,9 @@ struct ClipOptions {
   double width_mm = 0.0;                ///< grasp width along the line; 0: the paper's spring
   double arm_length_mm = 0.0;           ///< the longest insertion the arm holds
   double spacer_mm = 0.0;               ///< between the grasped leaflets' atrial surfaces
-  double insertion_mm = 0.0;            ///< 0: from the geometry at the grasp
-  std::string device;                   ///< its name (ClipDevice), for the record
+  /// Leaflet insertions, mm; 0: from the geometry at the grasp (clip_insertion_mm).
+  double anterior_insertion_mm = 0.0, posterior_insertion_mm = 0.0;
+  std::string device;  ///< its name (ClipDevice), for the record
 };
 
 /// How a clip grasped the leaflets (ClosureScene::grasps, ClosureResult::clip_grasps).
@@ -49,14 +51,23 @@ struct ClipGrasp {
   /// Leaflet length inside the arm, mm: the tissue left after spanning from the annulus to the
   /// coaptation point, L (L + Lp - chord) / (L + Lp), from the end-diastolic leaflet lengths at
   /// the sites and their annulus chord at the first closed frame, capped by the arm (or
-  /// ClipOptions::insertion_mm).
+  /// ClipOptions::anterior_insertion_mm, posterior_insertion_mm).
   double anterior_insertion_mm = 0, posterior_insertion_mm = 0;
   int anterior_nodes = 0, posterior_nodes = 0;  ///< surface nodes grasped on each leaflet
   int ties = 0;
   /// The stretch of the coaptation line (0 anterolateral, 1 posteromedial commissure) the
   /// device's body fills: from its grasped bands (empty for the paper's spring).
   double line_begin = 0, line_end = 0;
+  /// The grasped surface nodes of each leaflet (the model's surface node indices).
+  std::vector<int> anterior_band, posterior_band;
+  /// The elements of the corner mesh near the grasp: a corner within kGraspStressMarginMm of a
+  /// grasped node in the unrolled leaflet plane (where the stress near the grasp is taken).
+  std::vector<int> region_elements;
 };
+
+/// The margin around a grasped band within which the leaflet stress is taken, mm (issue 39: the
+/// grasped band and 3 mm around it).
+inline constexpr double kGraspStressMarginMm = 3.0;
 
 /// Every device of the table, in its order.
 const std::vector<ClipDevice>& clip_devices();

@@ -1,4 +1,5 @@
 #pragma once
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -93,6 +94,12 @@ class ClosureScene {
   std::vector<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> annulus_;  // per frame
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> annulus_ed_;
 };
+
+/// How deep each leaflet inserts into a device's arm (anterior, posterior), mm: the leaflets span
+/// the annulus chord between the sites at the first closed frame to their meeting point in
+/// proportion to their lengths at end-diastole, L (L + Lp - chord) / (L + Lp), capped by the arm;
+/// an insertion given in the options is taken as it is (capped by the arm).
+std::pair<double, double> clip_insertion_mm(const ValveSequence& sequence, const ClipOptions& clip);
 
 /// Adds clip `index` of the options, a device (ClipOptions::width_mm > 0), to the scene: its
 /// grasped bands, ties and ClipGrasp. Throws mvtwin::Error when a leaflet has no tissue within

@@ -188,6 +188,10 @@ struct ClosureResult {
   std::vector<int> guarded_elements;
   /// Per clip: how it grasped the leaflets.
   std::vector<ClipGrasp> clip_grasps;
+  /// Per chorda of the scene (ClosureScene::chordae, torn ones left out): its tension at the end,
+  /// N, and whether it is marginal.
+  std::vector<double> chorda_tension_n;
+  std::vector<char> chorda_marginal;
   /// The closed valve's regurgitant orifice (ClosureOptions::orifice_refine; sealed where the
   /// leaflets are within the contact law's reach, orifice_seal_mm) and the fine atrial and
   /// ventricular surfaces it was measured on. Empty when not measured or when the simulation
@@ -195,6 +199,13 @@ struct ClosureResult {
   std::optional<RegurgitantOrifice> orifice;
   LeafletGrid orifice_surface, orifice_lv_surface;
 };
+
+/// The q-quantile (q in [0, 1]) of the end state's von Mises stress over `elements` of the corner
+/// mesh (ClosureResult::element_stress_mpa; linear interpolation between order statistics), kPa;
+/// NaN when there are none. The 95th percentile near a grasp (ClipGrasp::region_elements) is the
+/// stress measure that converges under refinement where the maximum does not (point loads at
+/// chordae and ties).
+double stress_quantile_kpa(const ClosureResult& result, const std::vector<int>& elements, double q);
 
 /// The distance within which two leaflets seal: where the contact law pushes them apart
 /// (SelfContactOptions: from the alarm distance in), so that they carry the pressure across.

@@ -5,6 +5,7 @@
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/forward/closure_simulation.h"
+#include "mvtwin/forward/diastolic_opening.h"
 
 namespace mvtwin::inverse {
 
@@ -38,7 +39,21 @@ struct ClosureQuality {
   RegurgitantOrifice orifice;
   std::vector<double> clip_gap_mm;              ///< per clip, at the end
   std::vector<forward::ClipGrasp> clip_grasps;  ///< per clip: insertion, grasped tissue
+  /// End-state von Mises stress per element of the corner mesh (MPa) and chordae tensions (N).
+  Eigen::VectorXd element_stress_mpa;
+  std::vector<double> chorda_tension_n;
+  std::vector<char> chorda_marginal;
 };
+
+/// Stress where the clip holds the leaflets: the 95th percentile of the von Mises stress over
+/// the elements near each clip's grasp (forward::ClipGrasp::region_elements), the highest of
+/// the clips, kPa, on the clipped valve (`after`) and on the same elements of the valve without
+/// a clip (`before`); and the largest marginal chorda tension of each, N.
+struct GraspLoads {
+  double stress_p95_before_kpa = 0, stress_p95_after_kpa = 0;
+  double marginal_tension_before_n = 0, marginal_tension_after_n = 0;
+};
+GraspLoads grasp_loads(const ClosureQuality& without_clip, const ClosureQuality& with_clips);
 
 /// What a clip plan warns about (docs/clip-devices.md).
 struct ClipFlags {
@@ -67,12 +82,23 @@ struct EverestCriteria {
 EverestCriteria everest_criteria(const RegurgitantOrifice& without_clip);
 ClosureQuality closure_quality(const forward::ClosureResult& r);
 
+/// The valve with its clips, open in diastole (forward::simulate_diastole).
+struct ClipOpening {
+  bool computed = false;  ///< simulated (the plan opens only its best options)
+  bool converged = false;
+  std::string reason;
+  double mva_cm2 = 0, gradient_mmhg = 0;
+  bool stenosis = false;
+  std::vector<double> openings_cm2;  ///< largest first
+};
+
 /// One clip scenario: the closure simulated with the clips (Mansi et al. 2012, Sec. 2.4: clipped on
 /// the open valve with the pressure off, then closed under the patient's boundary motion and
 /// pressure).
 struct ClipScenario {
   std::vector<ClipSite> sites;
   ClosureQuality quality;
+  ClipOpening opening;
 };
 
 /// Simulates each set of sites (candidates `jobs` at a time) with the given parameters and
@@ -81,6 +107,12 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
                                          const forward::ClosureOptions& options,
                                          const std::vector<std::vector<ClipSite>>& candidates,
                                          int jobs);
+
+/// Opens the first `count` scenarios (with their clips) in diastole, `jobs` at a time; a failed
+/// simulation is reported in its opening, never thrown.
+void open_clips(const Patient& patient, const ValveParameters& parameters,
+                const forward::ClosureOptions& options, const forward::DiastoleOptions& diastole,
+                size_t count, int jobs, std::vector<ClipScenario>* scenarios);
 
 /// Candidate sites along the coaptation line at the free edges: single clips at positions
 /// 0.2, 0.3, ..., 0.8, and (with pairs) every two of them at least 0.2 apart, each with every

@@ -1,0 +1,91 @@
+#include "mvtwin/forward/diastolic_opening.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mvtwin/core/closure_measures.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/forward/closure_scene.h"
+
+namespace mvtwin::forward {
+
+bool DiastoleOptions::is_valid(std::string* error) const {
+  auto bad = [&](const char* m) {
+    *error = m;
+    return false;
+  };
+  if (!(transmitral_mmhg > 0 && transmitral_mmhg <= 50))
+    return bad("diastole: transmitral pressure must be in (0, 50] mmHg");
+  if (!(stroke_volume_ml > 0 && stroke_volume_ml <= 300))
+    return bad("diastole: stroke volume must be in (0, 300] mL");
+  if (!(filling_time_s > 0 && filling_time_s <= 2))
+    return bad("diastole: filling time must be in (0, 2] s");
+  if (!(stenosis_mva_cm2 > 0 && stenosis_gradient_mmhg > 0))
+    return bad("diastole: stenosis thresholds must be positive");
+  return true;
+}
+
+double gorlin_mean_gradient_mmhg(double flow_ml_per_s, double mva_cm2) {
+  if (!(mva_cm2 > 0)) return std::numeric_limits<double>::infinity();
+  const double r = flow_ml_per_s / (37.7 * mva_cm2);
+  return r * r;
+}
+
+DiastolicOpening simulate_diastole(const ValveSequence& seq, const ValveParameters& par,
+                                   const ClosureOptions& options, const DiastoleOptions& d) {
+  if (std::string why; !d.is_valid(&why)) throw Error(why);
+  if (seq.end_diastole < 0) throw Error("diastole: the sequence has no end-diastolic frame");
+  // The widest open frame up to end-diastole.
+  int open = -1;
+  double widest = -1.0;
+  for (int f = 0; f <= seq.end_diastole; ++f) {
+    const ValveFrame& fr = seq.frames[static_cast<size_t>(f)];
+    if (!fr.la_surface) continue;
+    const double a = measure_closure(fr).orifice_area_mm2;
+    if (a > widest) {
+      widest = a;
+      open = f;
+    }
+  }
+  if (open < 0) throw Error("diastole: no frame up to end-diastole has leaflets");
+  // The closure's grasp (insertions from its geometry) before the frames are moved.
+  ClosureOptions o = options;
+  for (size_t c = 0; c < o.clips.size(); ++c) {
+    ClipOptions& clip = o.clips[c];
+    if (clip.width_mm > 0) {
+      const auto [ia, ip] = clip_insertion_mm(seq, clip);
+      clip.anterior_insertion_mm = std::max(ia, 1e-3);
+      clip.posterior_insertion_mm = std::max(ip, 1e-3);
+    }
+  }
+  ValveSequence s = seq;
+  s.end_diastole = open;
+  s.first_closed = open + 1;
+  o.annulus_motion = false;
+  o.papillary_motion = false;
+  o.orifice_refine = 0;  // an open valve has no regurgitant orifice to measure
+  ValveParameters p = par;
+  p.peak_pressure_mpa = -units::mmhg_to_mpa(d.transmitral_mmhg);
+  DiastolicOpening out;
+  out.frame = open;
+  try {
+    out.result = simulate_closure(s, p, o);
+  } catch (const Error& e) {
+    out.reason = e.what();
+    return out;
+  }
+  out.converged = out.result.summary.converged();
+  out.reason = out.result.summary.reason;
+  if (!out.converged || out.result.samples.empty()) return out;
+  const ClosureSample& last = out.result.samples.back();
+  const ClosureMeasures m = measure_closure(
+      last.la_surface.points().topRows(last.la_surface.ures()), last.la_surface.triangulate(), 0.2);
+  out.mva_cm2 = units::mm2_to_cm2(m.orifice_area_mm2);
+  for (double a : m.component_areas_mm2) out.openings_cm2.push_back(units::mm2_to_cm2(a));
+  out.gradient_mmhg = gorlin_mean_gradient_mmhg(d.stroke_volume_ml / d.filling_time_s, out.mva_cm2);
+  out.stenosis = out.mva_cm2 < d.stenosis_mva_cm2 || out.gradient_mmhg >= d.stenosis_gradient_mmhg;
+  return out;
+}
+
+}  // namespace mvtwin::forward

@@ -1,0 +1,84 @@
+#include "mvtwin/forward/diastolic_opening.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "mvtwin/core/closure_measures.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/units.h"
+#include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/clip_device.h"
+
+namespace mvtwin::forward {
+namespace {
+
+TEST(Gorlin, MeanGradientInvertsTheGorlinRelation) {
+  // MVA = Q / (37.7 sqrt(dP)): 37.7 mL/s through 1 cm^2 is 1 mmHg, and the gradient grows with
+  // the square of the flow and falls with the square of the area.
+  EXPECT_NEAR(gorlin_mean_gradient_mmhg(37.7, 1.0), 1.0, 1e-12);
+  EXPECT_NEAR(gorlin_mean_gradient_mmhg(2 * 37.7, 1.0), 4.0, 1e-12);
+  EXPECT_NEAR(gorlin_mean_gradient_mmhg(37.7, 2.0), 0.25, 1e-12);
+  // 70 mL over 0.5 s through 1.5 cm^2: the stenosis thresholds meet near there.
+  const double g = gorlin_mean_gradient_mmhg(140.0, 1.5);
+  EXPECT_NEAR(g, std::pow(140.0 / (37.7 * 1.5), 2), 1e-12);
+  EXPECT_GT(g, 5.0);
+  EXPECT_TRUE(std::isinf(gorlin_mean_gradient_mmhg(140.0, 0.0)));
+}
+
+TEST(Diastole, RefusesImpossibleOptions) {
+  DiastoleOptions d;
+  d.transmitral_mmhg = -1;
+  std::string why;
+  EXPECT_FALSE(d.is_valid(&why));
+  EXPECT_NE(why.find("transmitral"), std::string::npos);
+  const Patient p = make_virtual_patient(1);
+  EXPECT_THROW(simulate_diastole(p.sequence, p.truth->parameters, {}, d), Error);
+}
+
+TEST(Diastole, TheOpenValveRestsOnItsWidestFrameAndAClipMakesTwoSmallerOrifices) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "two simulations take minutes under AddressSanitizer";
+#endif
+  const Patient p = make_virtual_patient(1);
+  ClosureOptions o;
+  o.model.ures = 30;  // at 20-24 x 12-16 the clip phase on the wide-open frame crosses
+  o.model.vres = 12;
+  const DiastolicOpening open = simulate_diastole(p.sequence, p.truth->parameters, o);
+  ASSERT_TRUE(open.converged) << open.reason;
+  // The widest frame up to end-diastole (a virtual patient's early diastole, frame 0).
+  double widest = 0;
+  int frame = -1;
+  for (int f = 0; f <= p.sequence.end_diastole; ++f) {
+    const double a = measure_closure(p.sequence.frames[static_cast<size_t>(f)]).orifice_area_mm2;
+    if (a > widest) {
+      widest = a;
+      frame = f;
+    }
+  }
+  EXPECT_EQ(open.frame, frame);
+  // Held open by the transmitral pressure, the valve opens at least as wide as the frame shows
+  // (within the coarser model's sampling), and it is one opening: no stenosis.
+  EXPECT_GT(open.mva_cm2, 0.9 * units::mm2_to_cm2(widest));
+  ASSERT_EQ(open.openings_cm2.size(), 1u);
+  EXPECT_FALSE(open.stenosis);
+  EXPECT_NEAR(open.gradient_mmhg, gorlin_mean_gradient_mmhg(140.0, open.mva_cm2), 1e-12);
+
+  // A device in the middle of the line: a double orifice, smaller in all.
+  const ClipDevice& d = clip_device("XTW");
+  ClipOptions c;
+  c.anterior_s = 0.25;
+  c.posterior_s = 0.75;
+  c.width_mm = d.width_mm;
+  c.arm_length_mm = d.arm_length_mm;
+  c.device = d.name;
+  o.clips.push_back(c);
+  const DiastolicOpening clipped = simulate_diastole(p.sequence, p.truth->parameters, o);
+  ASSERT_TRUE(clipped.converged) << clipped.reason;
+  EXPECT_EQ(clipped.openings_cm2.size(), 2u);
+  EXPECT_LT(clipped.mva_cm2, 0.8 * open.mva_cm2);
+  EXPECT_GT(clipped.gradient_mmhg, open.gradient_mmhg);
+}
+
+}  // namespace
+}  // namespace mvtwin::forward
