@@ -91,6 +91,7 @@ std::string opening_line(const inverse::ClipOpening& o) {
 json loads_json(const inverse::GraspLoads& g) {
   return {{"peak_stress_kpa", g.stress_p95_after_kpa},
           {"peak_stress_before_kpa", g.stress_p95_before_kpa},
+          {"max_stress_kpa", g.stress_max_after_kpa},
           {"marginal_chorda_tension_n", g.marginal_tension_after_n},
           {"marginal_chorda_tension_before_n", g.marginal_tension_before_n}};
 }
@@ -99,6 +100,44 @@ std::string loads_line(const inverse::GraspLoads& g) {
   return "; stress near the grasp " + f1(g.stress_p95_before_kpa) + " -> " +
          f1(g.stress_p95_after_kpa) + " kPa (95th percentile), largest marginal chorda " +
          f1(g.marginal_tension_before_n) + " -> " + f1(g.marginal_tension_after_n) + " N";
+}
+
+/// "EROA 4.8 mm^2 (95 %: 2.1-7.5)"-style intervals of a scenario's outcomes, and their SDs as
+/// NAME_sd in JSON.
+std::string interval_line(const inverse::ClipScenario& s, const inverse::ClosureQuality& before) {
+  const inverse::ClipUncertainty& u = s.uncertainty;
+  if (!u.computed) return "";
+  const Eigen::VectorXd v = inverse::clip_outcomes(s, before);
+  const char* label[] = {"EROA", "MVA", "gradient", "stress"};
+  const char* unit[] = {"mm^2", "cm^2", "mmHg", "kPa"};
+  std::string out = "; 95 % intervals from the calibration:";
+  bool any = false;
+  for (int k = 0; k < inverse::kClipOutcomes; ++k) {
+    if (!std::isfinite(v[k])) continue;
+    if (k == 3 && s.sites.empty()) continue;
+    char b[96];
+    if (std::isfinite(u.sd[k])) {
+      const double h = inverse::kZ95 * u.sd[k];
+      std::snprintf(b, sizeof b, " %s %.*f-%.*f %s", label[k], k == 1 ? 2 : 1,
+                    std::max(0.0, v[k] - h), k == 1 ? 2 : 1, v[k] + h, unit[k]);
+    } else {
+      std::snprintf(b, sizeof b, " %s ? (a simulation failed)", label[k]);
+    }
+    out += (any ? "," : "") + std::string(b);
+    any = true;
+  }
+  return any ? out : "";
+}
+
+void add_sd_json(const inverse::ClipScenario& s, json* j) {
+  const inverse::ClipUncertainty& u = s.uncertainty;
+  if (!u.computed) return;
+  for (int k = 0; k < inverse::kClipOutcomes; ++k) {
+    const double sd = u.sd[k];
+    (*j)[std::string(inverse::kClipOutcomeNames[k]) + "_sd"] =
+        std::isfinite(sd) ? json(sd) : json(nullptr);
+  }
+  (*j)["interval_failed_simulations"] = u.failed;
 }
 
 json sites_json(const std::vector<inverse::ClipSite>& sites) {
@@ -151,6 +190,8 @@ int run_clip(const ClipArgs& a) {
   ValveParameters par;
   forward::ClosureOptions o;
   std::string source = "default parameters (uncalibrated)";
+  inverse::CalibrationPosterior posterior;
+  posterior.why_not = "no calibration (--params)";
   if (!a.params.empty()) {
     const CalibrationRecord c = read_calibration_file(a.params);
     if (c.patient_id != p.id) {
@@ -159,6 +200,7 @@ int run_clip(const ClipArgs& a) {
     par = c.parameters;
     o = options_of(c);
     source = "calibrated parameters from " + a.params;
+    posterior = inverse::posterior_of(c);
   }
   if (a.true_params) {
     if (!p.synthetic || !p.truth)
@@ -166,8 +208,16 @@ int run_clip(const ClipArgs& a) {
                   ": --true-params needs a virtual patient (it holds no hidden parameters)");
     par = p.truth->parameters;
     source = "the virtual patient's hidden (true) parameters";
+    posterior.why_not = "the hidden parameters are exact";
   }
   for (const std::string& s_ : a.sets) forward::apply_setting(s_, &o, &par);
+  if (!a.sets.empty() && posterior.usable) {
+    // A --set may change a fitted parameter: the posterior's base follows the settings.
+    forward::ClosureOptions unused;
+    for (const std::string& s_ : a.sets) forward::apply_setting(s_, &unused, &posterior.base);
+  }
+  const bool intervals = posterior.usable && !a.no_intervals;
+  if (a.no_intervals) posterior.why_not = "--no-intervals";
   if (!a.out.empty()) {
     refuse_overwrite(a.out, a.force);
     refuse_overwrite(fs::path(a.out).replace_extension(".json"), a.force);
@@ -207,6 +257,13 @@ int run_clip(const ClipArgs& a) {
            {"filling_time_s", diastole.filling_time_s},
            {"gradient", "Gorlin, mitral constant 37.7"}}},
          {"provenance", provenance(a.command_line)}};
+  j["intervals"] = {{"computed", intervals},
+                    {"why_not", intervals ? "" : posterior.why_not},
+                    {"method",
+                     "linearized: one simulation one SD along each direction the calibration "
+                     "determines (eigenvectors of its covariance); NAME_sd per outcome, 95 % = "
+                     "1.96 SD"},
+                    {"unidentified_parameters", posterior.unidentified}};
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
   std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
@@ -226,16 +283,36 @@ int run_clip(const ClipArgs& a) {
     }
     // The best options opened in diastole (stenosis decides whether a clip may be placed).
     inverse::open_clips(p, par, o, diastole, static_cast<size_t>(a.open_best), a.jobs, &clipped);
+    inverse::SigmaPoints sp;
+    if (intervals) {
+      std::cout << "  intervals: the best " << a.open_best
+                << " options and the valve without a clip at each sigma point of the "
+                   "calibration ..."
+                << std::endl;
+      const size_t n = std::min(static_cast<size_t>(a.open_best), clipped.size());
+      std::vector<inverse::ClipScenario> all{before};
+      all.insert(all.end(), clipped.begin(), clipped.begin() + static_cast<std::ptrdiff_t>(n));
+      sp = inverse::propagate_clip_uncertainty(p, posterior, o, diastole, before.quality, n + 1,
+                                               a.jobs, &all);
+      for (size_t i = 0; i < n; ++i) clipped[i].uncertainty = all[i + 1].uncertainty;
+      std::cout << "before: " << interval_line(all.front(), before.quality).substr(2) << "\n";
+      add_sd_json(all.front(), &j["before"]);
+    }
     std::cout << "options ranked by the effective regurgitant orifice left (the best "
               << a.open_best << " also opened in diastole):\n";
     json ranked = json::array();
     int rank = 0;
     for (const auto& s : clipped) {
       const inverse::GraspLoads loads = inverse::grasp_loads(before.quality, s.quality);
+      const bool tied = rank > 0 && inverse::indistinguishable(sp, clipped.front(), s);
       std::cout << "  " << ++rank << ". " << inverse::describe_sites(s.sites) << ": "
                 << quality_line(s.quality) << opening_line(s.opening)
-                << (s.quality.converged ? loads_line(loads) : "") << "\n";
+                << (s.quality.converged ? loads_line(loads) : "")
+                << interval_line(s, before.quality)
+                << (tied ? " [cannot be told from option 1]" : "") << "\n";
       json r = sites_json(s.sites);
+      add_sd_json(s, &r);
+      if (s.uncertainty.computed) r["indistinguishable_from_best"] = rank == 1 || tied;
       r["after"] = quality_json(s.quality);
       r["open"] = opening_json(s.opening);
       if (s.quality.converged) r.update(loads_json(loads));
@@ -244,10 +321,22 @@ int run_clip(const ClipArgs& a) {
     j["ranked"] = ranked;
   } else {
     inverse::open_clips(p, par, o, diastole, 1, a.jobs, &clipped);
+    if (intervals) {
+      std::cout << "  intervals: the clipped valve and the valve without a clip at each sigma "
+                   "point of the calibration ..."
+                << std::endl;
+      std::vector<inverse::ClipScenario> both{res.front(), clipped.front()};
+      inverse::propagate_clip_uncertainty(p, posterior, o, diastole, before.quality, 2, a.jobs,
+                                          &both);
+      clipped.front().uncertainty = both[1].uncertainty;
+      std::cout << "before: " << interval_line(both[0], before.quality).substr(2) << "\n";
+      add_sd_json(both[0], &j["before"]);
+    }
     const auto& s = clipped.front();
     const inverse::GraspLoads loads = inverse::grasp_loads(before.quality, s.quality);
     std::cout << "after " << inverse::describe_sites(s.sites) << ": " << quality_line(s.quality)
-              << opening_line(s.opening) << (s.quality.converged ? loads_line(loads) : "") << "\n";
+              << opening_line(s.opening) << (s.quality.converged ? loads_line(loads) : "")
+              << interval_line(s, before.quality) << "\n";
     for (size_t c = 0; c < s.quality.clip_gap_mm.size(); ++c)
       std::cout << "  clip " << c + 1 << ": grasped leaflets " << f1(s.quality.clip_gap_mm[c])
                 << " mm apart at the end (atrial surfaces)\n";
@@ -258,6 +347,7 @@ int run_clip(const ClipArgs& a) {
     j["detachment_risk"] = f.detachment_risk;
     j["open"] = opening_json(s.opening);
     if (s.quality.converged) j.update(loads_json(loads));
+    add_sd_json(s, &j);
     if (s.opening.converged) {
       j["mva_cm2"] = s.opening.mva_cm2;
       j["gradient_mmhg"] = s.opening.gradient_mmhg;
@@ -333,6 +423,9 @@ void register_clip(CLI::App& app, Context& ctx) {
                   "with --suggest: how many of the best options to open in diastole (MVA)")
       ->default_val(a->open_best)
       ->check(CLI::Range(0, 1000));
+  cmd->add_flag("--no-intervals", a->no_intervals,
+                "skip the intervals from the calibration's covariance (one more simulation per "
+                "fitted direction and option)");
   cmd->add_option("--jobs", a->jobs, "simulations at once")
       ->default_val(2)
       ->check(CLI::Range(1, 256));

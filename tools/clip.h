@@ -18,6 +18,7 @@ struct ClipArgs : CommandArgs {
   bool suggest = false;
   bool pairs = false;
   int open_best = 5;
+  bool no_intervals = false;
   bool force = false;
   int jobs = 2;
   std::vector<std::string> sets;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -184,13 +185,15 @@ std::vector<std::vector<ClipSite>> pairs_around(const std::vector<std::vector<Cl
 
 GraspLoads grasp_loads(const ClosureQuality& before, const ClosureQuality& after) {
   GraspLoads g;
-  auto quantile = [](const ClosureQuality& q, const std::vector<int>& elements) {
+  auto quantile = [](const ClosureQuality& q, const std::vector<int>& elements, double at = 0.95) {
     forward::ClosureResult r;
     r.element_stress_mpa = q.element_stress_mpa;
-    return forward::stress_quantile_kpa(r, elements, 0.95);
+    return forward::stress_quantile_kpa(r, elements, at);
   };
   for (const forward::ClipGrasp& c : after.clip_grasps) {
     g.stress_p95_after_kpa = std::max(g.stress_p95_after_kpa, quantile(after, c.region_elements));
+    g.stress_max_after_kpa =
+        std::max(g.stress_max_after_kpa, quantile(after, c.region_elements, 1.0));
     g.stress_p95_before_kpa =
         std::max(g.stress_p95_before_kpa, quantile(before, c.region_elements));
   }
@@ -238,6 +241,88 @@ void rank_by_residual_orifice(std::vector<ClipScenario>* s) {
     if (a.quality.converged != b.quality.converged) return a.quality.converged;
     return a.quality.orifice.eroa_mm2 < b.quality.orifice.eroa_mm2;
   });
+}
+
+}  // namespace mvtwin::inverse
+
+namespace mvtwin::inverse {
+
+Eigen::VectorXd clip_outcomes(const ClipScenario& s, const ClosureQuality& before) {
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  Eigen::VectorXd v = Eigen::VectorXd::Constant(kClipOutcomes, nan);
+  if (s.quality.converged) {
+    v[0] = s.quality.orifice.eroa_mm2;
+    if (before.converged || s.sites.empty())
+      v[3] = grasp_loads(before, s.quality).stress_p95_after_kpa;
+  }
+  if (s.opening.computed && s.opening.converged) {
+    v[1] = s.opening.mva_cm2;
+    v[2] = s.opening.gradient_mmhg;
+  }
+  return v;
+}
+
+SigmaPoints propagate_clip_uncertainty(const Patient& patient, const CalibrationPosterior& post,
+                                       const forward::ClosureOptions& options,
+                                       const forward::DiastoleOptions& diastole,
+                                       const ClosureQuality& before_at_center, size_t count,
+                                       int jobs, std::vector<ClipScenario>* scenarios) {
+  SigmaPoints sp;
+  if (!post.usable) return sp;
+  sp = sigma_points(post.fitted, post.covariance, post.lower, post.upper);
+  const size_t n = std::min(count, scenarios->size());
+  const size_t np = sp.points.size();
+  // Every scenario (and the valve without a clip, first) at every sigma point, at once.
+  // A scenario without a clip is that valve itself (opened in diastole when it is asked for).
+  std::vector<std::vector<ClipSite>> sites{{}};
+  std::vector<size_t> column(n, 0);
+  bool open_before = false;
+  for (size_t i = 0; i < n; ++i) {
+    if ((*scenarios)[i].sites.empty()) {
+      open_before = true;
+    } else {
+      column[i] = sites.size();
+      sites.push_back((*scenarios)[i].sites);
+    }
+  }
+  std::vector<std::vector<ClipScenario>> at(np);
+  std::vector<ValveParameters> par(np);
+  for (size_t k = 0; k < np; ++k) par[k] = post.apply(sp.points[k]);
+  const size_t per = sites.size();
+  std::vector<ClipScenario> flat(np * per);
+  parallel_indices(np * per, jobs, [&](size_t i) {
+    const size_t k = i / per, c = i % per;
+    std::vector<ClipScenario> one = simulate_clips(patient, par[k], options, {sites[c]}, 1);
+    if (c > 0 || open_before) open_clips(patient, par[k], options, diastole, 1, 1, &one);
+    flat[i] = std::move(one.front());
+  });
+  for (size_t i = 0; i < n; ++i) {
+    ClipScenario& s = (*scenarios)[i];
+    ClipUncertainty& u = s.uncertainty;
+    u.computed = true;
+    u.at_points.resize(static_cast<Eigen::Index>(np), kClipOutcomes);
+    u.failed = 0;
+    for (size_t k = 0; k < np; ++k) {
+      const ClipScenario& before = flat[k * per];
+      const ClipScenario& here = flat[k * per + column[i]];
+      if (!before.quality.converged) ++u.failed;
+      if (column[i] > 0 && !here.quality.converged) ++u.failed;
+      if (here.opening.computed && !here.opening.converged) ++u.failed;
+      u.at_points.row(static_cast<Eigen::Index>(k)) =
+          clip_outcomes(here, before.quality).transpose();
+    }
+    u.sd = propagated_sd(sp, clip_outcomes(s, before_at_center), u.at_points);
+  }
+  return sp;
+}
+
+bool indistinguishable(const SigmaPoints& sp, const ClipScenario& a, const ClipScenario& b) {
+  if (!a.uncertainty.computed || !b.uncertainty.computed) return false;
+  if (!a.quality.converged || !b.quality.converged) return false;
+  const double sd = difference_sd(sp, a.quality.orifice.eroa_mm2, a.uncertainty.at_points.col(0),
+                                  b.quality.orifice.eroa_mm2, b.uncertainty.at_points.col(0));
+  if (!std::isfinite(sd)) return false;
+  return std::abs(a.quality.orifice.eroa_mm2 - b.quality.orifice.eroa_mm2) <= kZ95 * sd;
 }
 
 }  // namespace mvtwin::inverse

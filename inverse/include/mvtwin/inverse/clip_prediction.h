@@ -6,6 +6,7 @@
 #include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/diastolic_opening.h"
+#include "mvtwin/inverse/outcome_uncertainty.h"
 
 namespace mvtwin::inverse {
 
@@ -52,6 +53,9 @@ struct ClosureQuality {
 struct GraspLoads {
   double stress_p95_before_kpa = 0, stress_p95_after_kpa = 0;
   double marginal_tension_before_n = 0, marginal_tension_after_n = 0;
+  /// The largest element stress of the same region on the clipped valve, kPa (for comparison:
+  /// it does not converge under refinement).
+  double stress_max_after_kpa = 0;
 };
 GraspLoads grasp_loads(const ClosureQuality& without_clip, const ClosureQuality& with_clips);
 
@@ -92,6 +96,19 @@ struct ClipOpening {
   std::vector<double> openings_cm2;  ///< largest first
 };
 
+/// The spread of a scenario's outcomes under the calibration's posterior (outcome_uncertainty.h).
+/// Outcomes, in this order: EROA (mm^2), MVA (cm^2), mean gradient (mmHg), the grasp's stress
+/// (95th percentile, kPa).
+inline constexpr int kClipOutcomes = 4;
+inline const char* const kClipOutcomeNames[kClipOutcomes] = {"eroa_mm2", "mva_cm2", "gradient_mmhg",
+                                                             "peak_stress_kpa"};
+struct ClipUncertainty {
+  bool computed = false;
+  Eigen::VectorXd sd;         ///< per outcome; NaN where a simulation failed or was not run
+  Eigen::MatrixXd at_points;  ///< outcomes (columns) at each sigma point (rows)
+  int failed = 0;             ///< simulations that failed at the sigma points
+};
+
 /// One clip scenario: the closure simulated with the clips (Mansi et al. 2012, Sec. 2.4: clipped on
 /// the open valve with the pressure off, then closed under the patient's boundary motion and
 /// pressure).
@@ -99,7 +116,28 @@ struct ClipScenario {
   std::vector<ClipSite> sites;
   ClosureQuality quality;
   ClipOpening opening;
+  ClipUncertainty uncertainty;
 };
+
+/// The outcomes of a clipped scenario (kClipOutcomeNames; NaN where not computed); `before` is
+/// the same valve without a clip (for the grasp's stress).
+Eigen::VectorXd clip_outcomes(const ClipScenario& scenario, const ClosureQuality& before);
+
+/// Fills the `uncertainty` of the first `count` scenarios: each, and the valve without a clip,
+/// simulated in systole and diastole at every sigma point of the posterior (sigma_points), `jobs`
+/// at a time; `before_at_center` is the valve without a clip at the fitted parameters. Returns the
+/// sigma points (none when the posterior has no covariance: every SD 0). Failed simulations leave
+/// NaN, never throw.
+SigmaPoints propagate_clip_uncertainty(const Patient& patient,
+                                       const CalibrationPosterior& posterior,
+                                       const forward::ClosureOptions& options,
+                                       const forward::DiastoleOptions& diastole,
+                                       const ClosureQuality& before_at_center, size_t count,
+                                       int jobs, std::vector<ClipScenario>* scenarios);
+
+/// Whether scenario b's EROA cannot be told from a's: their difference lies within 1.96 SD of
+/// the difference (both with uncertainty from the same sigma points). False without it.
+bool indistinguishable(const SigmaPoints& sp, const ClipScenario& a, const ClipScenario& b);
 
 /// Simulates each set of sites (candidates `jobs` at a time) with the given parameters and
 /// options; a failed simulation is reported in its quality, never thrown.

@@ -1,0 +1,62 @@
+#pragma once
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mvtwin/core/calibration_file.h"
+#include "mvtwin/core/valve_parameters.h"
+
+namespace mvtwin::inverse {
+
+/// Points at which to simulate an outcome so that its spread under a calibration's posterior
+/// can be read off (docs/clip-devices.md, "How sure the answer is"). For each direction the
+/// data determine (eigenvector v_i of the covariance C with eigenvalue l_i > 0), one point
+/// x + a_i sqrt(l_i) v_i: one standard deviation along it (a_i = 1), or the other way (a_i = -1)
+/// when that leaves the parameters' bounds, or shortened (|a_i| < 1) when both ways do. To first
+/// order an outcome f then has the variance sum_i ((f(p_i) - f(x)) / a_i)^2 = g^T C g, g its
+/// gradient (linearized propagation through the parameter Jacobian, one simulation per
+/// direction; a secant over one SD rather than a tangent, which the simulated outcomes' small
+/// jumps with the mesh would spoil).
+struct SigmaPoints {
+  Eigen::VectorXd center;               ///< x, the fitted values (user units)
+  std::vector<Eigen::VectorXd> points;  ///< p_i
+  std::vector<double> scale;            ///< a_i
+};
+
+/// Throws mvtwin::Error for inconsistent sizes or non-finite values. A zero (or all-null)
+/// covariance gives no points: every outcome's SD is then 0.
+SigmaPoints sigma_points(const Eigen::VectorXd& center, const Eigen::MatrixXd& covariance,
+                         const Eigen::VectorXd& lower, const Eigen::VectorXd& upper);
+
+/// The SD of each outcome (columns) from its value at the center and at each point (rows of
+/// `at_points`, in the order of `sp.points`); NaN where any of them is not finite.
+Eigen::VectorXd propagated_sd(const SigmaPoints& sp, const Eigen::VectorXd& at_center,
+                              const Eigen::MatrixXd& at_points);
+
+/// The SD of the difference of two outcomes computed at the same points (their correlation
+/// through the shared parameters counts): whether two options can be told apart.
+double difference_sd(const SigmaPoints& sp, double a_center, const Eigen::VectorXd& a_points,
+                     double b_center, const Eigen::VectorXd& b_points);
+
+/// Two options cannot be told apart when their difference lies within the 95 % interval of the
+/// difference (1.96 SD).
+inline constexpr double kZ95 = 1.959963984540054;
+
+/// A calibration's posterior as the clip plan uses it: the fitted parameters' space (their
+/// names, bounds, the full fitted set as the base) and covariance. `usable` is false (with a
+/// reason) when the file holds no covariance.
+struct CalibrationPosterior {
+  bool usable = false;
+  std::string why_not;
+  std::string selection;  ///< comma-separated parameter names
+  Eigen::VectorXd fitted, lower, upper;
+  Eigen::MatrixXd covariance;
+  ValveParameters base;
+  std::vector<std::string> unidentified;  ///< names whose SD the data do not give
+  /// The base with the fitted parameters set to `x`.
+  ValveParameters apply(const Eigen::VectorXd& x) const;
+};
+CalibrationPosterior posterior_of(const CalibrationRecord& record);
+
+}  // namespace mvtwin::inverse

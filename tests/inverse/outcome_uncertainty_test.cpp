@@ -1,0 +1,152 @@
+#include "mvtwin/inverse/outcome_uncertainty.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <Eigen/Dense>
+
+#include "mvtwin/core/error.h"
+#include "mvtwin/inverse/parameter_space.h"
+
+namespace mvtwin::inverse {
+namespace {
+
+Eigen::MatrixXd random_covariance(int n, int rank, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> nd;
+  Eigen::MatrixXd L(n, rank);
+  for (Eigen::Index i = 0; i < L.size(); ++i) L.data()[i] = 0.1 * nd(gen);
+  return L * L.transpose();
+}
+
+/// Outcomes of a linear model at every sigma point.
+Eigen::MatrixXd at_points(const SigmaPoints& sp, const Eigen::MatrixXd& A,
+                          const Eigen::VectorXd& b) {
+  Eigen::MatrixXd m(static_cast<Eigen::Index>(sp.points.size()), A.rows());
+  for (size_t i = 0; i < sp.points.size(); ++i)
+    m.row(static_cast<Eigen::Index>(i)) = (A * sp.points[i] + b).transpose();
+  return m;
+}
+
+TEST(OutcomeUncertainty, LinearOutcomesGetTheirExactStandardDeviation) {
+  // For f(x) = A x + b the propagated variance is diag(A C A^T), whatever the correlations,
+  // and also where the bounds force points the other way or shorten them.
+  const int n = 3;
+  const Eigen::MatrixXd C = random_covariance(n, n, 5);
+  Eigen::MatrixXd A(2, n);
+  A << 1.0, -2.0, 0.5, 3.0, 0.0, -1.0;
+  const Eigen::VectorXd b = Eigen::Vector2d(4.0, -7.0);
+  const Eigen::VectorXd lo = Eigen::VectorXd::Constant(n, -10.0);
+  for (double room : {10.0, 0.05, 0.02}) {  // plenty; one SD does not fit one way; nor the other
+    SCOPED_TRACE(room);
+    const Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+    const Eigen::VectorXd hi = Eigen::VectorXd::Constant(n, room);
+    const Eigen::VectorXd lo2 = room < 0.03 ? Eigen::VectorXd::Constant(n, -room) : lo;
+    const SigmaPoints sp = sigma_points(x, C, lo2, hi);
+    ASSERT_EQ(sp.points.size(), 3u);
+    bool reflected = false;
+    for (size_t i = 0; i < sp.points.size(); ++i) {
+      EXPECT_TRUE((sp.points[i].array() <= hi.array() + 1e-12).all());
+      EXPECT_TRUE((sp.points[i].array() >= lo2.array() - 1e-12).all());
+      reflected = reflected || sp.scale[i] < 1.0;
+    }
+    EXPECT_EQ(reflected, room < 1.0) << "the bounds are felt only where they are near";
+    const Eigen::VectorXd sd = propagated_sd(sp, A * x + b, at_points(sp, A, b));
+    const Eigen::VectorXd expected = (A * C * A.transpose()).diagonal().cwiseSqrt();
+    EXPECT_LT((sd - expected).norm(), 1e-10 * expected.norm()) << sd.transpose();
+    // The difference of the two outcomes: its variance (a - b)^T C (a - b), not the sum of
+    // theirs.
+    const Eigen::MatrixXd P = at_points(sp, A, b);
+    const Eigen::VectorXd ab = A.row(0) - A.row(1);
+    EXPECT_NEAR(difference_sd(sp, b[0], P.col(0), b[1], P.col(1)), std::sqrt(ab.dot(C * ab)),
+                1e-10);
+  }
+}
+
+TEST(OutcomeUncertainty, DirectionsTheDataDoNotDetermineAreLeftOut) {
+  const Eigen::MatrixXd C = random_covariance(4, 2, 9);  // rank 2
+  const Eigen::VectorXd x = Eigen::VectorXd::Constant(4, 1.0);
+  const SigmaPoints sp =
+      sigma_points(x, C, Eigen::VectorXd::Constant(4, -5), Eigen::VectorXd::Constant(4, 5));
+  EXPECT_EQ(sp.points.size(), 2u);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Ones(1, 4);
+  const Eigen::VectorXd sd = propagated_sd(sp, A * x, at_points(sp, A, Eigen::VectorXd::Zero(1)));
+  EXPECT_NEAR(sd[0], std::sqrt((A * C * A.transpose())(0, 0)), 1e-10);
+  // No covariance at all: no points, zero spread.
+  const SigmaPoints none =
+      sigma_points(x, Eigen::MatrixXd::Zero(4, 4), Eigen::VectorXd::Constant(4, -5),
+                   Eigen::VectorXd::Constant(4, 5));
+  EXPECT_TRUE(none.points.empty());
+  EXPECT_EQ(propagated_sd(none, Eigen::VectorXd::Ones(2), Eigen::MatrixXd(0, 2)),
+            Eigen::VectorXd::Zero(2));
+}
+
+TEST(OutcomeUncertainty, ANonlinearOutcomeIsLinearizedToFirstOrder) {
+  // f = exp(x0) x1 at small spread: the first-order SD sqrt(g^T C g), within the secant's
+  // second-order error.
+  Eigen::Matrix2d C;
+  C << 0.0004, 0.0001, 0.0001, 0.0009;
+  const Eigen::Vector2d x(0.3, 2.0);
+  const SigmaPoints sp = sigma_points(x, C, Eigen::Vector2d(-1, 0), Eigen::Vector2d(1, 4));
+  Eigen::MatrixXd P(2, 1);
+  for (int i = 0; i < 2; ++i)
+    P(i, 0) = std::exp(sp.points[static_cast<size_t>(i)][0]) * sp.points[static_cast<size_t>(i)][1];
+  Eigen::VectorXd c(1);
+  c[0] = std::exp(x[0]) * x[1];
+  const Eigen::Vector2d g(std::exp(x[0]) * x[1], std::exp(x[0]));
+  const double expected = std::sqrt(g.dot(C * g));
+  EXPECT_NEAR(propagated_sd(sp, c, P)[0], expected, 0.03 * expected);
+  // A failed simulation (NaN) makes the SD unknown, not zero.
+  P(1, 0) = std::nan("");
+  EXPECT_TRUE(std::isnan(propagated_sd(sp, c, P)[0]));
+}
+
+TEST(OutcomeUncertainty, RefusesInconsistentInput) {
+  EXPECT_THROW(sigma_points(Eigen::VectorXd::Zero(2), Eigen::MatrixXd::Identity(3, 3),
+                            Eigen::VectorXd::Zero(2), Eigen::VectorXd::Ones(2)),
+               Error);
+  Eigen::MatrixXd bad = Eigen::MatrixXd::Identity(2, 2);
+  bad(0, 1) = std::nan("");
+  EXPECT_THROW(sigma_points(Eigen::VectorXd::Zero(2), bad, -Eigen::VectorXd::Ones(2),
+                            Eigen::VectorXd::Ones(2)),
+               Error);
+  const SigmaPoints sp = sigma_points(Eigen::VectorXd::Zero(2), Eigen::MatrixXd::Identity(2, 2),
+                                      -Eigen::VectorXd::Ones(2), Eigen::VectorXd::Ones(2));
+  EXPECT_THROW(propagated_sd(sp, Eigen::VectorXd::Zero(1), Eigen::MatrixXd::Zero(1, 1)), Error);
+}
+
+TEST(OutcomeUncertainty, ACalibrationRecordsPosteriorFollowsItsParameterNames) {
+  // A record listing its parameters in another order than the catalogue: the covariance is
+  // permuted with them, and the fitted values come from the full set.
+  const ParameterSpace space(
+      "restlength_factor_posteromedial_marginal,restlength_factor_anterolateral_marginal",
+      ValveParameters{});
+  ASSERT_EQ(space.size(), 2);
+  const std::string first = space.specs()[0].name, second = space.specs()[1].name;
+  CalibrationRecord r;
+  r.names = {second, first};
+  r.parameters = space.apply(Eigen::Vector2d(1.1, 0.95));
+  r.covariance.resize(2, 2);
+  r.covariance << 0.04, 0.01, 0.01, 0.09;  // in the record's order: second, first
+  r.sd = Eigen::Vector2d(0.2, std::nan(""));
+  const CalibrationPosterior post = posterior_of(r);
+  ASSERT_TRUE(post.usable) << post.why_not;
+  EXPECT_NEAR(post.fitted[0], 1.1, 1e-12);
+  EXPECT_NEAR(post.fitted[1], 0.95, 1e-12);
+  EXPECT_DOUBLE_EQ(post.covariance(0, 0), 0.09);  // the catalogue's first is the record's second
+  EXPECT_DOUBLE_EQ(post.covariance(1, 1), 0.04);
+  EXPECT_DOUBLE_EQ(post.covariance(0, 1), 0.01);
+  ASSERT_EQ(post.unidentified.size(), 1u);
+  EXPECT_EQ(post.unidentified[0], first);
+  const ValveParameters moved = post.apply(Eigen::Vector2d(1.2, 0.9));
+  EXPECT_NEAR(space.values_of(moved)[0], 1.2, 1e-12);
+  // Without a covariance there is nothing to propagate, and it says why.
+  r.covariance.resize(0, 0);
+  const CalibrationPosterior none = posterior_of(r);
+  EXPECT_FALSE(none.usable);
+  EXPECT_NE(none.why_not.find("covariance"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mvtwin::inverse
