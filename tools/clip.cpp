@@ -1,4 +1,5 @@
 // mvtwin clip: predicts the closure after an edge-to-edge clip (inverse/clip_prediction.h).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "clip.h"
+#include "clip_report.h"
 #include "exit_codes.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/calibration_file.h"
@@ -75,7 +77,9 @@ json opening_json(const inverse::ClipOpening& o) {
           {"mva_cm2", o.mva_cm2},
           {"openings_cm2", o.openings_cm2},
           {"gradient_mmhg", o.gradient_mmhg},
-          {"stenosis", o.stenosis}};
+          {"stenosis", o.stenosis},
+          {"frame", o.frame},
+          {"fallback", o.fallback}};
 }
 
 std::string opening_line(const inverse::ClipOpening& o) {
@@ -85,7 +89,9 @@ std::string opening_line(const inverse::ClipOpening& o) {
   std::snprintf(b, sizeof b, "MVA %.2f cm^2", o.mva_cm2);
   return std::string("; open: ") + b + " (" + std::to_string(o.openings_cm2.size()) + " opening" +
          (o.openings_cm2.size() == 1 ? "" : "s") + "), mean gradient " + f1(o.gradient_mmhg) +
-         " mmHg" + (o.stenosis ? " (STENOSIS)" : "");
+         " mmHg" + (o.stenosis ? " (STENOSIS)" : "") +
+         (o.fallback.empty() ? ""
+                             : " [on the end-diastolic frame: the grasp on the widest failed]");
 }
 
 json loads_json(const inverse::GraspLoads& g) {
@@ -186,6 +192,7 @@ forward::ClosureOptions options_of(const CalibrationRecord& c) {
 
 int run_clip(const ClipArgs& a) {
   if (a.at.empty() == !a.suggest) throw Error("clip: give either --at SITES or --suggest");
+  const auto started = std::chrono::steady_clock::now();
   const Patient p = read_patient_for_run(a.file, a.use_detected);
   ValveParameters par;
   forward::ClosureOptions o;
@@ -267,6 +274,7 @@ int run_clip(const ClipArgs& a) {
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
   std::vector<inverse::ClipScenario> clipped(res.begin() + 1, res.end());
+  inverse::SigmaPoints sp;
   if (a.suggest) {
     inverse::rank_by_residual_orifice(&clipped);
     if (a.pairs) {
@@ -283,7 +291,6 @@ int run_clip(const ClipArgs& a) {
     }
     // The best options opened in diastole (stenosis decides whether a clip may be placed).
     inverse::open_clips(p, par, o, diastole, static_cast<size_t>(a.open_best), a.jobs, &clipped);
-    inverse::SigmaPoints sp;
     if (intervals) {
       std::cout << "  intervals: the best " << a.open_best
                 << " options and the valve without a clip at each sigma point of the "
@@ -295,6 +302,7 @@ int run_clip(const ClipArgs& a) {
       sp = inverse::propagate_clip_uncertainty(p, posterior, o, diastole, before.quality, n + 1,
                                                a.jobs, &all);
       for (size_t i = 0; i < n; ++i) clipped[i].uncertainty = all[i + 1].uncertainty;
+      res.front().uncertainty = all.front().uncertainty;
       std::cout << "before: " << interval_line(all.front(), before.quality).substr(2) << "\n";
       add_sd_json(all.front(), &j["before"]);
     }
@@ -326,9 +334,10 @@ int run_clip(const ClipArgs& a) {
                    "point of the calibration ..."
                 << std::endl;
       std::vector<inverse::ClipScenario> both{res.front(), clipped.front()};
-      inverse::propagate_clip_uncertainty(p, posterior, o, diastole, before.quality, 2, a.jobs,
-                                          &both);
+      sp = inverse::propagate_clip_uncertainty(p, posterior, o, diastole, before.quality, 2, a.jobs,
+                                               &both);
       clipped.front().uncertainty = both[1].uncertainty;
+      res.front().uncertainty = both[0].uncertainty;
       std::cout << "before: " << interval_line(both[0], before.quality).substr(2) << "\n";
       add_sd_json(both[0], &j["before"]);
     }
@@ -353,6 +362,21 @@ int run_clip(const ClipArgs& a) {
       j["gradient_mmhg"] = s.opening.gradient_mmhg;
       j["stenosis"] = s.opening.stenosis;
     }
+  }
+  if (!a.report.empty()) {
+    ClipPlan plan;
+    plan.patient = &p;
+    plan.parameters_from = source;
+    plan.before = res.front();
+    plan.everest = everest;
+    plan.ranked = clipped;
+    plan.sigma = sp;
+    plan.intervals_why_not = posterior.why_not;
+    plan.command_line = a.command_line;
+    plan.jobs = a.jobs;
+    plan.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    write_clip_report(a.report, plan);
+    std::cout << "wrote the clip plan's report to " << a.report << "/report.html (and .md)\n";
   }
   // The chosen (or best) scenario as a full simulation file and VTK.
   if (!a.out.empty() || !a.vtk.empty()) {
@@ -383,7 +407,8 @@ void register_clip(CLI::App& app, Context& ctx) {
   cmd->footer(
       "Examples:\n  mvtwin clip observed.h5 --params calib.h5 --at 0.5 --out clipped.h5\n"
       "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at \"0.35;0.65\" --out two.h5\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --suggest --devices XTW --jobs 2\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --suggest --devices XTW --open-best 2 --report "
+      "plan/\n"
       "  mvtwin clip observed.h5 --params calib.h5 --suggest --pairs --jobs 2   # long: 6 devices\n"
       "  mvtwin clip observed.h5 --params calib.h5 --device spring --at 0.5,1   # the paper's "
       "clip\n"
@@ -417,6 +442,8 @@ void register_clip(CLI::App& app, Context& ctx) {
                   "result of the clipped closure (simulation file; a .json "
                   "summary is written beside it)");
   cmd->add_option("--vtk", a->vtk, "directory for the clipped closure (ParaView)");
+  cmd->add_option("--report", a->report,
+                  "folder for the clip plan's report (report.md, report.html, en-face PNGs)");
   cmd->add_flag("--suggest", a->suggest, "search sites along the coaptation line and rank them");
   cmd->add_flag("--pairs", a->pairs, "with --suggest: also pairs of clips");
   cmd->add_option("--open-best", a->open_best,

@@ -15,6 +15,7 @@ struct ClipArgs : CommandArgs {
   std::vector<std::string> devices;
   std::string out;
   std::string vtk;
+  std::string report;
   bool suggest = false;
   bool pairs = false;
   int open_best = 5;

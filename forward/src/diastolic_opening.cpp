@@ -59,24 +59,34 @@ DiastolicOpening simulate_diastole(const ValveSequence& seq, const ValveParamete
       clip.posterior_insertion_mm = std::max(ip, 1e-3);
     }
   }
-  ValveSequence s = seq;
-  s.end_diastole = open;
-  s.first_closed = open + 1;
-  o.annulus_motion = false;
-  o.papillary_motion = false;
-  o.orifice_refine = 0;  // an open valve has no regurgitant orifice to measure
-  ValveParameters p = par;
-  p.peak_pressure_mpa = -units::mmhg_to_mpa(d.transmitral_mmhg);
+  // The widest frame first; should the clips' grasp on it fail (the bands pulled together from
+  // wide open can fold a leaflet through the other), the end-diastolic frame, as the closure
+  // grasps.
+  std::vector<int> frames{open};
+  if (seq.end_diastole != open && !o.clips.empty()) frames.push_back(seq.end_diastole);
   DiastolicOpening out;
-  out.frame = open;
-  try {
-    out.result = simulate_closure(s, p, o);
-  } catch (const Error& e) {
-    out.reason = e.what();
-    return out;
+  for (int f : frames) {
+    ValveSequence s = seq;
+    s.end_diastole = f;
+    s.first_closed = f + 1;
+    ClosureOptions of = o;
+    of.annulus_motion = false;
+    of.papillary_motion = false;
+    of.orifice_refine = 0;  // an open valve has no regurgitant orifice to measure
+    ValveParameters p = par;
+    p.peak_pressure_mpa = -units::mmhg_to_mpa(d.transmitral_mmhg);
+    if (out.frame >= 0) out.fallback = "on frame " + std::to_string(out.frame) + ": " + out.reason;
+    out.frame = f;
+    try {
+      out.result = simulate_closure(s, p, of);
+      out.converged = out.result.summary.converged();
+      out.reason = out.result.summary.reason;
+    } catch (const Error& e) {
+      out.converged = false;
+      out.reason = e.what();
+    }
+    if (out.converged) break;
   }
-  out.converged = out.result.summary.converged();
-  out.reason = out.result.summary.reason;
   if (!out.converged || out.result.samples.empty()) return out;
   const ClosureSample& last = out.result.samples.back();
   const ClosureMeasures m = measure_closure(

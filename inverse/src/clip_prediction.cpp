@@ -89,6 +89,7 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   q.element_stress_mpa = r.element_stress_mpa;
   q.chorda_tension_n = r.chorda_tension_n;
   q.chorda_marginal = r.chorda_marginal;
+  if (!r.samples.empty()) q.closed_surface = r.samples.back().la_surface;
   return q;
 }
 
@@ -135,6 +136,9 @@ void open_clips(const Patient& patient, const ValveParameters& par,
       op.gradient_mmhg = d.gradient_mmhg;
       op.stenosis = d.stenosis;
       op.openings_cm2 = d.openings_cm2;
+      op.frame = d.frame;
+      op.fallback = d.fallback;
+      if (!d.result.samples.empty()) op.open_surface = d.result.samples.back().la_surface;
     } catch (const std::exception& e) {
       op.converged = false;
       op.reason = e.what();

@@ -11,6 +11,7 @@
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "png_file.h"
 
 namespace mvtwin::studies {
 namespace {
@@ -262,14 +263,7 @@ void Plot::write_png(const std::filesystem::path& path) const {
       text(img, series[static_cast<std::size_t>(k)].name, {at.x + 30, at.y + 1}, 0.45, -1);
     }
   }
-  write_atomically(path, [&](const std::filesystem::path& tmp) {
-    std::vector<uchar> buf;
-    if (!cv::imencode(".png", img, buf)) throw Error(path.string() + ": PNG encoding failed");
-    FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (!f) throw Error(path.string() + ": cannot write");
-    const bool ok = std::fwrite(buf.data(), 1, buf.size(), f) == buf.size();
-    if (std::fclose(f) != 0 || !ok) throw Error(path.string() + ": write failed");
-  });
+  studies::write_png(path, img);
 }
 
 }  // namespace mvtwin::studies

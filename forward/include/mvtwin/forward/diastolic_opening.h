@@ -35,7 +35,10 @@ double gorlin_mean_gradient_mmhg(double flow_ml_per_s, double mva_cm2);
 struct DiastolicOpening {
   bool converged = false;
   std::string reason;
-  int frame = -1;  ///< the open frame the model rests in (the widest before end-diastole)
+  /// The open frame the model rests in: the widest before end-diastole, or end-diastole when
+  /// the clips' grasp on the widest failed (`fallback` then says why).
+  int frame = -1;
+  std::string fallback;
   /// Mitral valve area: the openings seen along the annulus normal (perpendicular to the
   /// inflow), summed, cm^2; each opening largest first.
   double mva_cm2 = 0;

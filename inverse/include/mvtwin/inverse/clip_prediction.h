@@ -1,7 +1,9 @@
 #pragma once
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "mvtwin/core/leaflet_grid.h"
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/regurgitant_orifice.h"
 #include "mvtwin/forward/closure_simulation.h"
@@ -44,6 +46,8 @@ struct ClosureQuality {
   Eigen::VectorXd element_stress_mpa;
   std::vector<double> chorda_tension_n;
   std::vector<char> chorda_marginal;
+  /// The closed valve's atrial surface at the end (for pictures).
+  std::optional<LeafletGrid> closed_surface;
 };
 
 /// Stress where the clip holds the leaflets: the 95th percentile of the von Mises stress over
@@ -93,7 +97,10 @@ struct ClipOpening {
   std::string reason;
   double mva_cm2 = 0, gradient_mmhg = 0;
   bool stenosis = false;
-  std::vector<double> openings_cm2;  ///< largest first
+  std::vector<double> openings_cm2;         ///< largest first
+  int frame = -1;                           ///< the open frame (forward::DiastolicOpening::frame)
+  std::string fallback;                     ///< why not the widest frame (empty when it is)
+  std::optional<LeafletGrid> open_surface;  ///< the open valve's atrial surface
 };
 
 /// The spread of a scenario's outcomes under the calibration's posterior (outcome_uncertainty.h).
