@@ -376,7 +376,8 @@ int run_clip(const ClipArgs& a) {
     plan.jobs = a.jobs;
     plan.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     write_clip_report(a.report, plan);
-    std::cout << "wrote the clip plan's report to " << a.report << "/report.html (and .md)\n";
+    std::cout << "wrote the clip plan's report to " << (fs::path(a.report) / "report.html").string()
+              << " (and report.md)\n";
   }
   // The chosen (or best) scenario as a full simulation file and VTK.
   if (!a.out.empty() || !a.vtk.empty()) {
