@@ -421,7 +421,9 @@ void register_clip(CLI::App& app, Context& ctx) {
       "parameters (--params; the defaults without it). Reports the regurgitant orifice (EROA,\n"
       "MR grade, openings), coaptation, the leaflet insertions (detachment risk below 4 mm) and\n"
       "the EVEREST anatomic criteria. --suggest ranks every device at positions 0.2-0.8;\n"
-      "--pairs adds pairs around the three best.");
+      "--pairs adds pairs around the three best. With a calibration that has a covariance,\n"
+      "every outcome comes with a 95 % interval (--no-intervals skips them); --report DIR\n"
+      "writes the plan as report.md/.html with pictures (docs/clip-devices.md).");
   auto a = std::make_shared<ClipArgs>();
   cmd->add_flag(
       "--use-detected", a->use_detected,
