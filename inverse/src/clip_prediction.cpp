@@ -289,7 +289,6 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
       sites.push_back((*scenarios)[i].sites);
     }
   }
-  std::vector<std::vector<ClipScenario>> at(np);
   std::vector<ValveParameters> par(np);
   for (size_t k = 0; k < np; ++k) par[k] = post.apply(sp.points[k]);
   const size_t per = sites.size();

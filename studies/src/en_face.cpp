@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <numeric>
 
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
