@@ -1,6 +1,6 @@
 #pragma once
-// mvtwin study clip: the residual orifice before and after the best single clip and pair over a
-// cohort (studies/clip_study.h).
+// mvtwin study clip: the clip plan made on calibrated virtual patients against the truth of their
+// hidden parameters (studies/clip_study.h).
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -12,12 +12,13 @@
 namespace mvtwin::tools {
 
 struct StudyClipArgs : CommandArgs {
-  std::string out, folder;
-  int patients = 10, jobs = 2;
+  std::string out, cache;
+  int patients = 10, jobs = 2, max_scanned = 40, max_simulations = 50;
   std::uint64_t seed = 2026;
+  double min_eroa = 20.0;
   std::vector<double> positions;
-  double spacing = 0.2, margin = 1.0;
-  bool quick = false, no_pairs = false;
+  std::vector<std::string> devices;
+  bool quick = false, no_intervals = false;
   std::vector<std::string> sets;
 };
 

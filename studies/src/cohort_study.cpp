@@ -11,7 +11,6 @@
 #include <set>
 
 #include "mvtwin/core/atomic_file.h"
-#include "mvtwin/core/cache_key.h"
 #include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -253,16 +252,12 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   if (o.folder.empty()) {
     const fs::path cache = o.cache.empty() ? o.out / "observed" : o.cache;
     if (pool.is_root()) create_output_directory(cache);
-    std::string description = "noise=" + std::to_string(o.observation.noise_mm);
-    for (const auto& [k, v] : forward::describe_result_options(o.observation.simulation))
-      description += " " + k + "=" + v;
-    const std::string key = cache_key(description);
     for (int i = 0; i < o.patients; ++i) {
       const CohortMember m = cohort_member(o.seed, i);
       char name[32];
       std::snprintf(name, sizeof name, "patient_%04d", i);
       entries.push_back({name, m.id, std::string(pathology_name(m.pathology)),
-                         cache / ("observed_" + m.id + "_" + key + ".h5"), true});
+                         detail::observed_file(cache, m.id, o.observation), true});
     }
   } else {
     const std::vector<fs::path> files = patient_files(o.folder);
@@ -280,29 +275,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       const Entry& e = entries[static_cast<std::size_t>(i)];
       json r{{"s", 0.0}};
       try {
-        bool have = false;
-        {
-          std::lock_guard<std::mutex> lock(hdf5_mutex());
-          if (fs::exists(e.file)) {
-            try {
-              const Patient p = read_patient(e.file, false);
-              have = p.sequence.first_closed >= 0 &&
-                     p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)]
-                         .la_surface.has_value();
-            } catch (const Error&) {
-              have = false;  // damaged: make it again
-            }
-          }
-        }
-        if (!have) {
-          report("observe", done, n, e.id + ": simulating its observed closure (fine model)");
-          const auto t0 = std::chrono::steady_clock::now();
-          Patient p = make_cohort_patient(o.seed, i);
-          forward::simulate_observed_closure(&p, o.observation);
-          r["s"] = seconds_since(t0);
-          std::lock_guard<std::mutex> lock(hdf5_mutex());
-          write_patient(e.file, p);
-        }
+        report("observe", done, n, e.id + ": its observed closure (fine model; cached once made)");
+        r["s"] = detail::ensure_observed(e.file, o.seed, i, o.observation);
       } catch (const std::exception& ex) {
         r["reason"] = std::string("observation failed: ") + ex.what();
       }

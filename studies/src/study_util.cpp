@@ -2,12 +2,16 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <mutex>
 
+#include "mvtwin/core/cache_key.h"
+#include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/studies/report.h"
+#include "mvtwin/studies/study_folder.h"
 
 namespace mvtwin::studies::detail {
 
@@ -72,6 +76,39 @@ Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path
   Patient p = make_cohort_patient(seed, index);
   *parameters = p.truth->parameters;
   return p;
+}
+
+std::filesystem::path observed_file(const std::filesystem::path& cache, const std::string& id,
+                                    const forward::VirtualClosureOptions& observation) {
+  std::string description = "noise=" + std::to_string(observation.noise_mm);
+  for (const auto& [k, v] : forward::describe_result_options(observation.simulation))
+    description += " " + k + "=" + v;
+  return cache / ("observed_" + id + "_" + cache_key(description) + ".h5");
+}
+
+double ensure_observed(const std::filesystem::path& file, std::uint64_t seed, int index,
+                       const forward::VirtualClosureOptions& observation) {
+  {
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
+    if (std::filesystem::exists(file)) {
+      try {
+        const Patient p = read_patient(file, false);
+        if (p.sequence.first_closed >= 0 &&
+            p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)]
+                .la_surface.has_value())
+          return 0.0;
+      } catch (const Error&) {
+        // damaged: make it again
+      }
+    }
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  Patient p = make_cohort_patient(seed, index);
+  forward::simulate_observed_closure(&p, observation);
+  const double s = seconds_since(t0);
+  std::lock_guard<std::mutex> lock(hdf5_mutex());
+  write_patient(file, p);
+  return s;
 }
 
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s) {

@@ -13,6 +13,7 @@
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/forward/closure_simulation.h"
+#include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::studies::detail {
 
@@ -48,6 +49,17 @@ std::string stats_text(const nlohmann::json& s, int digits = 2);
 /// file.
 Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
                       ValveParameters* parameters);
+
+/// Where virtual patient `id`'s observed closure is cached in `cache`: named by the observation
+/// model, so that studies and runs with the same model share it.
+std::filesystem::path observed_file(const std::filesystem::path& cache, const std::string& id,
+                                    const forward::VirtualClosureOptions& observation);
+/// Makes virtual patient `index` of cohort `seed` observed by `observation` into `file`, unless a
+/// readable file with its closed frame is already there (a damaged one is made again). Returns
+/// the seconds spent simulating (0 when cached). Throws mvtwin::Error when the observation
+/// fails.
+double ensure_observed(const std::filesystem::path& file, std::uint64_t seed, int index,
+                       const forward::VirtualClosureOptions& observation);
 
 /// The provenance every study file records.
 nlohmann::json provenance(const std::string& command, const std::string& workers, double wall_s);

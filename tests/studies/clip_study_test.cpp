@@ -1,16 +1,19 @@
-// The clip study: every scenario of every patient simulated, the best single clip and pair found
-// among them, clips that hold (small gaps) and reduce the orifice, resumable.
+// The clip prediction study: qualifying patients found by their observed EROA, every option's
+// truth (fine model, hidden parameters), prediction (calibrated, with intervals) and baseline
+// (defaults) recorded, ranks and the summary's counts consistent with them, resumable.
 #include "mvtwin/studies/clip_study.h"
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "mvtwin/core/calibration_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/table_file.h"
 
@@ -20,102 +23,108 @@ using namespace mvtwin::studies;
 
 namespace {
 
-TEST(ClipStudy, CandidatesAreSinglesThenPairsFarEnoughApart) {
-  ClipStudyOptions o;
-  const auto c = o.candidates();
-  // 7 singles and the 15 pairs of 0.2..0.8 at least 0.2 apart (21 pairs less the 6 neighbours).
-  ASSERT_EQ(c.size(), 22u);
-  for (std::size_t i = 0; i < 7; ++i) EXPECT_EQ(c[i].size(), 1u);
-  for (std::size_t i = 7; i < c.size(); ++i) {
-    ASSERT_EQ(c[i].size(), 2u);
-    EXPECT_GE(c[i][1] - c[i][0], 0.2 - 1e-9);
-  }
-  o.pairs = false;
-  EXPECT_EQ(o.candidates().size(), 7u);
+bool within(double p, double t, double a, double r) {
+  return std::abs(p - t) <= std::max(a, r * std::abs(t));
 }
 
-TEST(ClipStudy, QuickStudyFindsTheBestClipsAndResumes) {
+}  // namespace
+
+TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_clip_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   ClipStudyOptions o = ClipStudyOptions::quick();
-  o.out = dir;
+  o.out = dir / "study";
+  o.positions = {0.4, 0.6};  // two options: ranks mean something
   auto pool = make_local_pool();
   const ClipStudyResult r = run_clip_study(o, *pool);
   ASSERT_EQ(r.patients.size(), 2u);
-  const std::size_t per = o.candidates().size() + 1;
+  ASSERT_EQ(r.scanned.size(), 2u);  // no threshold: the first two members
+  int in_eroa = 0, n_eroa = 0, in_default = 0;
   for (const auto& p : r.patients) {
     ASSERT_EQ(p.status, "ok") << p.id << ": " << p.reason;
-    EXPECT_TRUE(p.synthetic);
-    ASSERT_EQ(p.scenarios.size(), per);
-    EXPECT_TRUE(p.scenarios.front().positions.empty());
-    EXPECT_EQ(p.scenarios.front().max_clip_gap_mm, 0.0);
-    for (const auto& s : p.scenarios) ASSERT_EQ(s.status, "ok") << p.id << ": " << s.reason;
-    // The best single clip is the smallest orifice among the single clips.
-    ASSERT_GE(p.best_single, 1);
-    ASSERT_GE(p.best_pair, 1);
-    for (const auto& s : p.scenarios) {
-      if (s.positions.size() == 1) {
-        EXPECT_LE(p.scenarios[p.best_single].orifice_mm2, s.orifice_mm2);
-      }
-      // A clip holds its leaflets together: the atrial surfaces end about a leaflet thickness
-      // apart, never the centimetres of an open valve.
-      if (!s.positions.empty()) {
-        EXPECT_GT(s.max_clip_gap_mm, 0.0);
-        EXPECT_LT(s.max_clip_gap_mm, 3.0);
-      }
+    // The truth without a clip is the observed closure's orifice.
+    EXPECT_TRUE(std::isfinite(p.eroa_no_clip_true_mm2));
+    // The calibration fitted and improved the fit to the observed frames.
+    EXPECT_LT(p.error_after_mm, p.error_before_mm) << p.id;
+    EXPECT_TRUE(fs::exists(o.out / "calibrations" / (p.id + ".h5"))) << p.id;
+    const CalibrationRecord cal = read_calibration_file(o.out / "calibrations" / (p.id + ".h5"));
+    EXPECT_EQ(cal.patient_id, p.id);
+    ASSERT_EQ(p.options.size(), 2u);
+    double lowest_true = 1e9, lowest_pred = 1e9;
+    for (const auto& op : p.options) {
+      EXPECT_EQ(op.device, "XTW");
+      ASSERT_TRUE(std::isfinite(op.eroa_true_mm2)) << op.truth_reason;
+      ASSERT_TRUE(std::isfinite(op.eroa_predicted_mm2)) << op.prediction_reason;
+      ASSERT_TRUE(std::isfinite(op.eroa_default_mm2));
+      EXPECT_TRUE(std::isfinite(op.mva_true_cm2));
+      EXPECT_TRUE(std::isfinite(op.mva_predicted_cm2));
+      EXPECT_GT(op.mva_predicted_cm2, 0.0);
+      // An interval from the calibration's covariance.
+      EXPECT_TRUE(std::isfinite(op.eroa_predicted_sd_mm2));
+      EXPECT_GE(op.eroa_predicted_sd_mm2, 0.0);
+      lowest_true = std::min(lowest_true, op.eroa_true_mm2);
+      lowest_pred = std::min(lowest_pred, op.eroa_predicted_mm2);
     }
-    EXPECT_EQ(p.scenarios[p.best_pair].positions.size(), 2u);
-    EXPECT_EQ(p.two_clips_win, p.scenarios[p.best_pair].orifice_mm2 <=
-                                   p.scenarios[p.best_single].orifice_mm2 - o.two_clip_margin_mm2);
+    // Rank 1 is the smallest EROA; the two ranks of a column differ.
+    ASSERT_GE(p.best_true, 0);
+    ASSERT_GE(p.best_predicted, 0);
+    EXPECT_EQ(p.options[p.best_true].eroa_true_mm2, lowest_true);
+    EXPECT_EQ(p.options[p.best_true].rank_true, 1);
+    EXPECT_EQ(p.options[p.best_predicted].eroa_predicted_mm2, lowest_pred);
+    EXPECT_NE(p.options[0].rank_true, p.options[1].rank_true);
+    // The summary's counts, recomputed.
+    auto count = [&](double pred, double def, double t) {
+      ++n_eroa;
+      in_eroa += within(pred, t, 3.0, 0.25);
+      in_default += within(def, t, 3.0, 0.25);
+    };
+    count(p.eroa_no_clip_predicted_mm2, p.eroa_no_clip_default_mm2, p.eroa_no_clip_true_mm2);
+    for (const auto& op : p.options)
+      count(op.eroa_predicted_mm2, op.eroa_default_mm2, op.eroa_true_mm2);
   }
-  // The valve that leaks most (here an unsatisfactory closure, over 5 mm^2) leaks less once
-  // clipped: the clip joins the leaflets where they fail to meet. (A valve that already closes
-  // may leak more: a clip can split a closed line into openings beside it.)
-  const auto& worst = *std::max_element(r.patients.begin(), r.patients.end(), [](auto& a, auto& b) {
-    return a.scenarios.front().orifice_mm2 < b.scenarios.front().orifice_mm2;
-  });
-  ASSERT_GT(worst.scenarios.front().orifice_mm2, 5.0);
-  EXPECT_LT(worst.scenarios[worst.best_single].orifice_mm2, worst.scenarios.front().orifice_mm2);
-  EXPECT_LT(std::min(worst.scenarios[worst.best_single].orifice_mm2,
-                     worst.scenarios[worst.best_pair].orifice_mm2),
-            0.9 * worst.scenarios.front().orifice_mm2);
-  std::ifstream f(dir / "study.json");
+  EXPECT_EQ(r.summary.at("eroa_compared"), n_eroa);
+  EXPECT_EQ(r.summary.at("eroa_within_tolerance"), in_eroa);
+  EXPECT_EQ(r.summary.at("eroa_default_within_tolerance"), in_default);
+  EXPECT_EQ(r.summary.at("patients_ranked"), 2);
+
+  std::ifstream f(o.out / "study.json");
   const nlohmann::json j = nlohmann::json::parse(f);
   EXPECT_EQ(j.at("format"), "mvtwin-clip-study");
   ASSERT_EQ(j.at("patients").size(), 2u);
-  EXPECT_TRUE(j.at("patients")[0].at("orifice_best_single_mm2").is_number());
-  EXPECT_EQ(j.at("summary").at("overall").at("patients"), 2);
-  const TableFile t = read_table_file(dir / "study.h5");
-  EXPECT_EQ(t.columns.front().strings.size(), 2 * per);
-  EXPECT_GT(fs::file_size(dir / "orifice.png"), 1000u);
-  EXPECT_GT(fs::file_size(dir / "report.html"), 1000u);
+  for (const char* key : {"id", "pathology", "eroa_no_clip_true_mm2", "eroa_no_clip_predicted_mm2",
+                          "best_true", "best_predicted", "options"})
+    EXPECT_TRUE(j.at("patients")[0].contains(key)) << key;
+  for (const char* key :
+       {"device", "positions", "eroa_true_mm2", "eroa_predicted_mm2", "eroa_predicted_sd_mm2",
+        "eroa_default_mm2", "mva_true_cm2", "mva_predicted_cm2", "gradient_predicted_mmhg",
+        "stenosis_predicted", "rank_true", "rank_predicted"})
+    EXPECT_TRUE(j.at("patients")[0].at("options")[0].contains(key)) << key;
+  EXPECT_EQ(j.at("provenance").at("seed"), o.seed);
+  const TableFile t = read_table_file(o.out / "study.h5");
+  EXPECT_EQ(t.columns.front().strings.size(), 2u * 3u);  // no clip and two options each
+  EXPECT_GT(fs::file_size(o.out / "eroa_predicted_vs_true.png"), 1000u);
+  EXPECT_GT(fs::file_size(o.out / "report.html"), 1000u);
 
+  // Resumed: nothing simulated again, the same numbers.
   int resumed = 0;
   o.progress = [&](const StudyEvent& e) {
     resumed += e.message.find("resumed") != std::string::npos;
   };
   const ClipStudyResult again = run_clip_study(o, *pool);
-  EXPECT_EQ(resumed, static_cast<int>(2 * per));
-  EXPECT_EQ(again.patients[1].scenarios[2].orifice_mm2, r.patients[1].scenarios[2].orifice_mm2);
-  fs::remove_all(dir);
-}
+  EXPECT_EQ(resumed, 2 + 2 * 3);  // two members, two predictions, four truths
+  EXPECT_EQ(again.patients[1].options[1].eroa_predicted_mm2,
+            r.patients[1].options[1].eroa_predicted_mm2);
 
-TEST(ClipStudy, BadPatientFileIsRecordedAndTheStudyGoesOn) {
-  const fs::path dir = fs::temp_directory_path() / ("mvtwin_clipbad_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir / "patients");
-  std::ofstream(dir / "patients" / "broken.h5") << "not hdf5";
-  ClipStudyOptions o = ClipStudyOptions::quick();
-  o.out = dir / "out";
-  o.folder = dir / "patients";
-  o.pairs = false;
-  auto pool = make_local_pool();
-  const ClipStudyResult r = run_clip_study(o, *pool);
-  ASSERT_EQ(r.patients.size(), 1u);
-  EXPECT_EQ(r.patients[0].status, "failed");
-  EXPECT_NE(r.patients[0].reason.find("broken.h5"), std::string::npos) << r.patients[0].reason;
-  EXPECT_EQ(r.summary.at("overall").at("failed"), 1);
-  EXPECT_TRUE(fs::exists(o.out / "report.md"));
+  // A threshold no member reaches: the observations are reused (the cache), none qualifies.
+  ClipStudyOptions strict = ClipStudyOptions::quick();
+  strict.out = dir / "strict";
+  strict.cache = o.out / "observed";
+  strict.min_eroa_mm2 = 999.0;
+  const ClipStudyResult none = run_clip_study(strict, *pool);
+  EXPECT_TRUE(none.patients.empty());
+  ASSERT_EQ(none.scanned.size(), 4u);  // max_scanned
+  EXPECT_EQ(none.scanned[0].at("eroa_true_mm2"), r.patients[0].eroa_no_clip_true_mm2);
+  EXPECT_EQ(none.scanned[0].at("observe_s"), 0.0);  // cached
   fs::remove_all(dir);
 }
 
@@ -123,19 +132,28 @@ TEST(ClipStudy, InvalidOptionsAreRefused) {
   ClipStudyOptions o = ClipStudyOptions::quick();
   o.out = "x";
   std::string e;
+  EXPECT_TRUE(o.is_valid(&e)) << e;
   ClipStudyOptions b = o;
   b.positions = {0.5, 1.2};
   EXPECT_FALSE(b.is_valid(&e));
   EXPECT_NE(e.find("positions"), std::string::npos) << e;
   b = o;
-  b.positions = {0.45, 0.5};
-  b.pair_spacing = 0.2;
-  EXPECT_FALSE(b.is_valid(&e));  // pairs asked for, none possible
-  EXPECT_NE(e.find("no pairs"), std::string::npos) << e;
-  b = o;
-  b.two_clip_margin_mm2 = -1;
+  b.devices = {"XTW", "NoSuchClip"};
   EXPECT_FALSE(b.is_valid(&e));
-  EXPECT_TRUE(o.is_valid(&e)) << e;
+  EXPECT_NE(e.find("NoSuchClip"), std::string::npos) << e;
+  b = o;
+  b.max_scanned = 1;
+  EXPECT_FALSE(b.is_valid(&e));
+  EXPECT_NE(e.find("max_scanned"), std::string::npos) << e;
+  b = o;
+  b.fit = "restlength,nonsense";
+  EXPECT_FALSE(b.is_valid(&e));
+  EXPECT_NE(e.find("nonsense"), std::string::npos) << e;
+  b = o;
+  b.min_eroa_mm2 = -1;
+  EXPECT_FALSE(b.is_valid(&e));
+  b = o;
+  b.out.clear();
+  EXPECT_FALSE(b.is_valid(&e));
+  EXPECT_THROW(run_clip_study(b, *make_local_pool()), Error);
 }
-
-}  // namespace

@@ -550,19 +550,17 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   }
 }
 
-TEST_F(Cli, QuickConvergenceClipAndRobustnessStudiesPrintTheirTables) {
+TEST_F(Cli, QuickConvergenceAndRobustnessStudiesPrintTheirTables) {
   CmdResult r = run("study convergence --quick --out " + path("v"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("(reference)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("[SYNTHETIC]"), std::string::npos) << r.out;
   EXPECT_NE(r.err.find("[simulate 6/6]"), std::string::npos) << r.err;  // progress
-  r = run("study clip --quick --patients 1 --out " + path("k"));
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("best single"), std::string::npos) << r.out;
+  // (study clip --quick runs as the --help examples test runs it)
   r = run("study robustness --quick --runs 3 --out " + path("r"));
   ASSERT_TRUE(r.code == 0 || r.code == 5) << r.err;
   EXPECT_NE(r.out.find("3 cases:"), std::string::npos) << r.out;
-  for (const char* d : {"v", "k", "r"}) EXPECT_TRUE(fs::exists(path(d) + "/report.html")) << d;
+  for (const char* d : {"v", "r"}) EXPECT_TRUE(fs::exists(path(d) + "/report.html")) << d;
 }
 
 TEST_F(Cli, QuickCohortStudyPrintsItsTableNextToThePaper) {
