@@ -723,18 +723,18 @@ void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const St
         def{"default parameters", {}, {}, false, true, {}},
         id_line{"y = x", {}, {}, true, false, {}};
     double hi = 0;
-    auto add = [&](double t, double pv, double sd, double d) {
-      if (!std::isfinite(t)) return;
+    auto add = [&](double truth, double pv, double sd, double d) {
+      if (!std::isfinite(truth)) return;
       if (std::isfinite(pv)) {
-        cal.x.push_back(t);
+        cal.x.push_back(truth);
         cal.y.push_back(pv);
         cal.y_error.push_back(std::isfinite(sd) ? inverse::kZ95 * sd : 0.0);
-        hi = std::max(hi, std::max(t, pv));
+        hi = std::max(hi, std::max(truth, pv));
       }
       if (std::isfinite(d)) {
-        def.x.push_back(t);
+        def.x.push_back(truth);
         def.y.push_back(d);
-        hi = std::max(hi, std::max(t, d));
+        hi = std::max(hi, std::max(truth, d));
       }
     };
     for (const auto& p : r.patients) {
