@@ -251,7 +251,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       char name[32];
       std::snprintf(name, sizeof name, "member_%04d", i);
       if (auto rec = folder->record(name)) {
-        report("observe", ++done, o.patients, std::string(name) + ": done before (resumed)");
+        report("observe", ++done, o.max_scanned, std::string(name) + ": done before (resumed)");
         return rec->dump();
       }
       const CohortMember m = cohort_member(o.seed, i);
@@ -260,7 +260,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
              {"pathology", std::string(pathology_name(m.pathology))},
              {"observe_s", 0.0}};
       try {
-        report("observe", done, o.patients, m.id + ": its observed closure (fine model)");
+        report("observe", done, o.max_scanned, m.id + ": its observed closure (fine model)");
         const fs::path file = file_of(r);
         r["observe_s"] = detail::ensure_observed(file, o.seed, i, o.observation);
         const Patient p = load(file);
@@ -271,7 +271,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
         r["reason"] = std::string("observation failed: ") + ex.what();
       }
       folder->save_record(name, r);
-      report("observe", ++done, o.patients,
+      report("observe", ++done, o.max_scanned,
              m.id + " (" + r["pathology"].get<std::string>() + "): " +
                  (r.contains("reason")
                       ? r["reason"].get<std::string>()
@@ -386,6 +386,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
                {"mva_cm2", nullable(s.opening.converged ? s.opening.mva_cm2 : kNaN)},
                {"gradient_mmhg", nullable(s.opening.converged ? s.opening.gradient_mmhg : kNaN)},
                {"stenosis", s.opening.converged && s.opening.stenosis},
+               {"diastole_reason", s.opening.converged ? "" : s.opening.reason},
                {"min_insertion_mm", fl.min_insertion_mm},
                {"detachment_risk", fl.detachment_risk},
                {"eroa_default_mm2", nullable(eroa_of(def[j].quality))}});
@@ -460,6 +461,13 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       op.min_insertion_predicted_mm = number_at(ps, "min_insertion_mm");
       op.detachment_risk_predicted = ps.value("detachment_risk", false);
       op.prediction_reason = pred_ok ? ps.value("reason", std::string()) : cp.reason;
+      // Systole converged but the valve did not open: say so (MVA and gradient stay empty).
+      auto diastole = [](const json& j, std::string* reason) {
+        const std::string d = j.value("diastole_reason", std::string());
+        if (reason->empty() && !d.empty()) *reason = "diastole failed: " + d;
+      };
+      diastole(tr, &op.truth_reason);
+      diastole(ps, &op.prediction_reason);
       vt.push_back(op.eroa_true_mm2);
       vp.push_back(op.eroa_predicted_mm2);
       vd.push_back(op.eroa_default_mm2);
