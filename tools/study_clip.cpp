@@ -65,6 +65,9 @@ int run_study_clip(const StudyClipArgs& args) {
             << count("best_true_in_default_top2", "patients_ranked") << ")\n"
             << "truth inside the best option's 95 % interval: "
             << count("truth_in_best_interval", "best_intervals") << "\n";
+  if (static_cast<int>(r.patients.size()) < o.patients)
+    std::cout << "only " << r.patients.size() << " of the first " << r.scanned.size()
+              << " members qualified (--patients " << o.patients << "; raise --max-scanned)\n";
   std::cout << "wrote " << (o.out / "report.md").string() << " (" << r.wall_s << " s)\n";
   const bool failed = s["patients_failed"].get<int>() > 0 ||
                       s["truth_options_failed"].get<int>() > 0 ||

@@ -179,7 +179,7 @@ void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const St
 
 }  // namespace
 
-json ClipStudyPatient::to_json(const ClipStudyOptions& o) const {
+json ClipStudyPatient::to_json() const {
   auto option_ref = [&](int k) {
     if (k < 0) return json(nullptr);
     const ClipStudyOption& op = options[static_cast<std::size_t>(k)];
@@ -187,7 +187,6 @@ json ClipStudyPatient::to_json(const ClipStudyOptions& o) const {
   };
   json opts = json::array();
   for (const auto& op : options) opts.push_back(op.to_json());
-  (void)o;
   return {{"index", index},
           {"id", id},
           {"pathology", pathology},
@@ -583,7 +582,7 @@ std::string cell(double v, int digits = 1) { return std::isfinite(v) ? number(v,
 
 void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const StudyFolder& f) {
   json patients = json::array();
-  for (const auto& p : r.patients) patients.push_back(p.to_json(o));
+  for (const auto& p : r.patients) patients.push_back(p.to_json());
   json prov = detail::provenance(o.command, r.workers, r.wall_s);
   prov["seed"] = o.seed;
   write_json(f.path("study.json"), {{"format", "mvtwin-clip-study"},

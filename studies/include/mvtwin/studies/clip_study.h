@@ -69,7 +69,8 @@ struct ClipStudyOptions {
   /// at 0.5.
   static ClipStudyOptions quick();
   nlohmann::json config() const;
-  /// "XTW at 0.50" for option k (devices outer, positions inner).
+  /// The options: every device at every position; option k is device k / positions.size() at
+  /// position k % positions.size().
   int num_options() const { return static_cast<int>(devices.size() * positions.size()); }
   std::string option_device(int k) const;
   double option_position(int k) const;
@@ -102,7 +103,7 @@ struct ClipStudyPatient {
   double calibrate_s = 0, predict_s = 0;
   std::vector<ClipStudyOption> options;
   int best_true = -1, best_predicted = -1, best_default = -1;  ///< option indices
-  nlohmann::json to_json(const ClipStudyOptions& o) const;
+  nlohmann::json to_json() const;
 };
 
 struct ClipStudyResult {
