@@ -1,0 +1,1 @@
+// Host of the test programs' shared precompiled header (tests/CMakeLists.txt).
