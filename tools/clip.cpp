@@ -268,8 +268,9 @@ int run_clip(const ClipArgs& a) {
                     {"why_not", intervals ? "" : posterior.why_not},
                     {"method",
                      "linearized: one simulation one SD along each direction the calibration "
-                     "determines (eigenvectors of its covariance); NAME_sd per outcome, 95 % = "
-                     "1.96 SD"},
+                     "determines (eigenvectors of its covariance), and the mesh's part: the "
+                     "change on a mesh 4/3 finer at the fitted values; NAME_sd = sqrt(both "
+                     "squared) per outcome, 95 % = 1.96 SD"},
                     {"unidentified_parameters", posterior.unidentified}};
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
@@ -422,7 +423,8 @@ void register_clip(CLI::App& app, Context& ctx) {
       "MR grade, openings), coaptation, the leaflet insertions (detachment risk below 4 mm) and\n"
       "the EVEREST anatomic criteria. --suggest ranks every device at positions 0.2-0.8;\n"
       "--pairs adds pairs around the three best. With a calibration that has a covariance,\n"
-      "every outcome comes with a 95 % interval (--no-intervals skips them); --report DIR\n"
+      "every outcome comes with a 95 % interval: the calibration's spread and the change on a\n"
+      "mesh 4/3 finer (--no-intervals skips them); --report DIR\n"
       "writes the plan as report.md/.html with pictures (docs/clip-devices.md).");
   auto a = std::make_shared<ClipArgs>();
   cmd->add_flag(
@@ -454,8 +456,8 @@ void register_clip(CLI::App& app, Context& ctx) {
       ->default_val(a->open_best)
       ->check(CLI::Range(0, 1000));
   cmd->add_flag("--no-intervals", a->no_intervals,
-                "skip the intervals from the calibration's covariance (one more simulation per "
-                "fitted direction and option)");
+                "skip the intervals from the calibration's covariance and the mesh (one more "
+                "simulation per fitted direction and option, and one on the finer mesh)");
   cmd->add_option("--jobs", a->jobs, "simulations at once")
       ->default_val(2)
       ->check(CLI::Range(1, 256));

@@ -266,13 +266,29 @@ Eigen::VectorXd clip_outcomes(const ClipScenario& s, const ClosureQuality& befor
   return v;
 }
 
+forward::ClosureOptions refined_options(const forward::ClosureOptions& options, double factor) {
+  if (!(factor >= 1.0) || !std::isfinite(factor))
+    throw Error("refined_options: the refinement factor must be at least 1 (got " +
+                std::to_string(factor) + ")");
+  forward::ClosureOptions r = options;
+  auto finer = [&](int n) {
+    const int m = static_cast<int>(std::ceil(n * factor - 1e-9));
+    return m + (m % 2);
+  };
+  r.model.ures = finer(options.model.ures);
+  r.model.vres = finer(options.model.vres);
+  return r;
+}
+
 SigmaPoints propagate_clip_uncertainty(const Patient& patient, const CalibrationPosterior& post,
                                        const forward::ClosureOptions& options,
                                        const forward::DiastoleOptions& diastole,
                                        const ClosureQuality& before_at_center, size_t count,
-                                       int jobs, std::vector<ClipScenario>* scenarios) {
+                                       int jobs, std::vector<ClipScenario>* scenarios,
+                                       const MeshCheck& mesh) {
   SigmaPoints sp;
   if (!post.usable) return sp;
+  if (mesh.enabled) (void)refined_options(options, mesh.factor);  // refuse a bad factor first
   sp = sigma_points(post.fitted, post.covariance, post.lower, post.upper);
   const size_t n = std::min(count, scenarios->size());
   const size_t np = sp.points.size();
@@ -289,14 +305,21 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
       sites.push_back((*scenarios)[i].sites);
     }
   }
-  std::vector<ValveParameters> par(np);
+  // Rows 0..np-1: the sigma points; row np (with the mesh check): the fitted parameters on the
+  // refined mesh.
+  const size_t rows = np + (mesh.enabled ? 1 : 0);
+  std::vector<ValveParameters> par(rows);
   for (size_t k = 0; k < np; ++k) par[k] = post.apply(sp.points[k]);
+  if (mesh.enabled) par[np] = post.apply(post.fitted);
+  const forward::ClosureOptions refined =
+      mesh.enabled ? refined_options(options, mesh.factor) : options;
   const size_t per = sites.size();
-  std::vector<ClipScenario> flat(np * per);
-  parallel_indices(np * per, jobs, [&](size_t i) {
+  std::vector<ClipScenario> flat(rows * per);
+  parallel_indices(rows * per, jobs, [&](size_t i) {
     const size_t k = i / per, c = i % per;
-    std::vector<ClipScenario> one = simulate_clips(patient, par[k], options, {sites[c]}, 1);
-    if (c > 0 || open_before) open_clips(patient, par[k], options, diastole, 1, 1, &one);
+    const forward::ClosureOptions& o = k < np ? options : refined;
+    std::vector<ClipScenario> one = simulate_clips(patient, par[k], o, {sites[c]}, 1);
+    if (c > 0 || open_before) open_clips(patient, par[k], o, diastole, 1, 1, &one);
     flat[i] = std::move(one.front());
   });
   for (size_t i = 0; i < n; ++i) {
@@ -314,7 +337,18 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
       u.at_points.row(static_cast<Eigen::Index>(k)) =
           clip_outcomes(here, before.quality).transpose();
     }
-    u.sd = propagated_sd(sp, clip_outcomes(s, before_at_center), u.at_points);
+    const Eigen::VectorXd at_center = clip_outcomes(s, before_at_center);
+    u.sd_parameters = propagated_sd(sp, at_center, u.at_points);
+    u.sd_mesh = Eigen::VectorXd::Zero(kClipOutcomes);
+    u.at_refined =
+        Eigen::VectorXd::Constant(kClipOutcomes, std::numeric_limits<double>::quiet_NaN());
+    if (mesh.enabled) {
+      const ClipScenario& before = flat[np * per];
+      u.at_refined = clip_outcomes(flat[np * per + column[i]], before.quality);
+      // A failed refined run leaves the outcome's SD unknown (NaN), as a failed sigma point does.
+      u.sd_mesh = (u.at_refined - at_center).cwiseAbs();
+    }
+    u.sd = (u.sd_parameters.array().square() + u.sd_mesh.array().square()).sqrt().matrix();
   }
   return sp;
 }
@@ -322,8 +356,18 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
 bool indistinguishable(const SigmaPoints& sp, const ClipScenario& a, const ClipScenario& b) {
   if (!a.uncertainty.computed || !b.uncertainty.computed) return false;
   if (!a.quality.converged || !b.quality.converged) return false;
-  const double sd = difference_sd(sp, a.quality.orifice.eroa_mm2, a.uncertainty.at_points.col(0),
-                                  b.quality.orifice.eroa_mm2, b.uncertainty.at_points.col(0));
+  double sd = difference_sd(sp, a.quality.orifice.eroa_mm2, a.uncertainty.at_points.col(0),
+                            b.quality.orifice.eroa_mm2, b.uncertainty.at_points.col(0));
+  const ClipUncertainty &ua = a.uncertainty, &ub = b.uncertainty;
+  const bool checked =
+      ua.sd_mesh.size() > 0 && ub.sd_mesh.size() > 0 && (ua.sd_mesh[0] != 0 || ub.sd_mesh[0] != 0);
+  if (checked) {
+    // The mesh moves both: what counts is how much it moves their difference (NaN when a
+    // refined run failed: then, as without intervals, no tie is claimed).
+    const double mesh = (ua.at_refined[0] - ub.at_refined[0]) -
+                        (a.quality.orifice.eroa_mm2 - b.quality.orifice.eroa_mm2);
+    sd = std::sqrt(sd * sd + mesh * mesh);
+  }
   if (!std::isfinite(sd)) return false;
   return std::abs(a.quality.orifice.eroa_mm2 - b.quality.orifice.eroa_mm2) <= kZ95 * sd;
 }

@@ -120,7 +120,9 @@ json ClipStudyOptions::config() const {
            {{"transmitral_mmhg", diastole.transmitral_mmhg},
             {"stroke_volume_ml", diastole.stroke_volume_ml},
             {"filling_time_s", diastole.filling_time_s}}},
-          {"intervals", intervals}};
+          {"intervals", intervals},
+          // The intervals' mesh part (a folder made before it is refused, not mixed).
+          {"interval_mesh_factor", intervals ? json(inverse::MeshCheck{}.factor) : json(nullptr)}};
 }
 
 json ClipStudyOption::to_json() const {
@@ -376,11 +378,14 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
         json sc = json::array();
         for (std::size_t j = 0; j < pred.size(); ++j) {
           const inverse::ClipScenario& s = pred[j];
-          const double sd = s.uncertainty.computed ? s.uncertainty.sd[0] : kNaN;
+          const inverse::ClipUncertainty& u = s.uncertainty;
+          const double sd = u.computed ? u.sd[0] : kNaN;
           const inverse::ClipFlags fl = inverse::clip_flags(s.quality.clip_grasps);
           sc.push_back(
               {{"eroa_mm2", nullable(eroa_of(s.quality))},
                {"eroa_sd_mm2", nullable(sd)},
+               {"eroa_sd_parameters_mm2", nullable(u.computed ? u.sd_parameters[0] : kNaN)},
+               {"eroa_refined_mm2", nullable(u.computed ? u.at_refined[0] : kNaN)},
                {"reason", s.quality.converged ? "" : s.quality.reason},
                {"mva_cm2", nullable(s.opening.converged ? s.opening.mva_cm2 : kNaN)},
                {"gradient_mmhg", nullable(s.opening.converged ? s.opening.gradient_mmhg : kNaN)},

@@ -4,6 +4,7 @@
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/inverse/parameter_space.h"
 
 namespace mvtwin::inverse {
 namespace {
@@ -87,6 +88,69 @@ TEST(ClipPrediction, ConcurrentCandidatesEqualSequentialOnes) {
     EXPECT_EQ(a.clip_gap_mm, b.clip_gap_mm) << i;
   }
   EXPECT_TRUE(two[1].quality.converged) << two[1].quality.reason;
+}
+
+TEST(MeshCheck, RefinedMeshIsFinerByTheFactorAndEven) {
+  forward::ClosureOptions o;
+  o.model.ures = 30;
+  o.model.vres = 30;
+  EXPECT_EQ(refined_options(o, 4.0 / 3.0).model.ures, 40);
+  EXPECT_EQ(refined_options(o, 4.0 / 3.0).model.vres, 40);
+  o.model.ures = 16;
+  o.model.vres = 8;
+  const forward::ClosureOptions r = refined_options(o, 4.0 / 3.0);
+  EXPECT_EQ(r.model.ures, 22);  // 21.3 rounded up to even
+  EXPECT_EQ(r.model.vres, 12);  // 10.7 -> 11 -> 12
+  EXPECT_EQ(r.dt, o.dt);        // only the mesh changes
+  EXPECT_EQ(refined_options(o, 1.0).model.ures, 16);
+  EXPECT_THROW(refined_options(o, 0.5), Error);
+  EXPECT_THROW(refined_options(o, std::nan("")), Error);
+}
+
+// The interval of an outcome: the posterior's spread and the mesh's change, each recomputed
+// here from its own simulations (the sigma point's and the refined mesh's).
+TEST(ClipPrediction, IntervalsAddTheMeshsChangeToTheParametersSpread) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "closures take too long under AddressSanitizer";
+#endif
+  const Patient p = make_virtual_patient(1);
+  forward::ClosureOptions o;
+  o.model.ures = 16;
+  o.model.vres = 8;
+  const ParameterSpace space("peak_pressure", p.truth->parameters);
+  CalibrationRecord rec;
+  rec.names = {space.specs()[0].name};
+  rec.parameters = p.truth->parameters;
+  rec.covariance = Eigen::MatrixXd::Constant(1, 1, 4.0);  // 2 mmHg SD
+  rec.sd = Eigen::VectorXd::Constant(1, 2.0);
+  const CalibrationPosterior post = posterior_of(rec);
+  ASSERT_TRUE(post.usable) << post.why_not;
+  forward::DiastoleOptions diastole;
+  std::vector<ClipScenario> s = simulate_clips(p, post.apply(post.fitted), o, {{}}, 1);
+  ASSERT_TRUE(s[0].quality.converged) << s[0].quality.reason;
+  const ClosureQuality before = s[0].quality;
+  const SigmaPoints sp = propagate_clip_uncertainty(p, post, o, diastole, before, 1, 2, &s);
+  ASSERT_EQ(sp.points.size(), 1u);
+  const ClipUncertainty& u = s[0].uncertainty;
+  ASSERT_TRUE(u.computed);
+  // The parameters' part: the secant over one SD.
+  const auto at_point = simulate_clips(p, post.apply(sp.points[0]), o, {{}}, 1);
+  ASSERT_TRUE(at_point[0].quality.converged);
+  const double eroa = before.orifice.eroa_mm2;
+  EXPECT_NEAR(u.sd_parameters[0],
+              std::abs(at_point[0].quality.orifice.eroa_mm2 - eroa) / std::abs(sp.scale[0]), 1e-9);
+  // The mesh's part: the same valve on the 22 x 12 mesh.
+  const auto fine =
+      simulate_clips(p, post.apply(post.fitted), refined_options(o, 4.0 / 3.0), {{}}, 1);
+  ASSERT_TRUE(fine[0].quality.converged);
+  EXPECT_NEAR(u.at_refined[0], fine[0].quality.orifice.eroa_mm2, 1e-9);
+  EXPECT_NEAR(u.sd_mesh[0], std::abs(fine[0].quality.orifice.eroa_mm2 - eroa), 1e-9);
+  EXPECT_NEAR(u.sd[0], std::hypot(u.sd_parameters[0], u.sd_mesh[0]), 1e-9);
+  // Without the check the interval is the parameters' alone.
+  std::vector<ClipScenario> t = simulate_clips(p, post.apply(post.fitted), o, {{}}, 1);
+  propagate_clip_uncertainty(p, post, o, diastole, before, 1, 2, &t, MeshCheck{false, 1.0});
+  EXPECT_EQ(t[0].uncertainty.sd_mesh[0], 0.0);
+  EXPECT_NEAR(t[0].uncertainty.sd[0], u.sd_parameters[0], 1e-9);
 }
 
 }  // namespace
