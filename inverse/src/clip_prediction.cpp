@@ -288,7 +288,9 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
                                        const MeshCheck& mesh) {
   SigmaPoints sp;
   if (!post.usable) return sp;
-  if (mesh.enabled) (void)refined_options(options, mesh.factor);  // refuse a bad factor first
+  // Before any simulation, so that a bad factor is refused first.
+  const forward::ClosureOptions refined =
+      mesh.enabled ? refined_options(options, mesh.factor) : options;
   sp = sigma_points(post.fitted, post.covariance, post.lower, post.upper);
   const size_t n = std::min(count, scenarios->size());
   const size_t np = sp.points.size();
@@ -311,8 +313,6 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
   std::vector<ValveParameters> par(rows);
   for (size_t k = 0; k < np; ++k) par[k] = post.apply(sp.points[k]);
   if (mesh.enabled) par[np] = post.apply(post.fitted);
-  const forward::ClosureOptions refined =
-      mesh.enabled ? refined_options(options, mesh.factor) : options;
   const size_t per = sites.size();
   std::vector<ClipScenario> flat(rows * per);
   parallel_indices(rows * per, jobs, [&](size_t i) {

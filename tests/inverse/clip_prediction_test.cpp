@@ -9,6 +9,14 @@
 namespace mvtwin::inverse {
 namespace {
 
+/// A coarse closure (16 x 8) for the tests that simulate several.
+forward::ClosureOptions coarse_options() {
+  forward::ClosureOptions o;
+  o.model.ures = 16;
+  o.model.vres = 8;
+  return o;
+}
+
 TEST(ClipSites, ParsedAndMappedOntoBothLeaflets) {
   const std::vector<ClipSite> s = parse_clip_sites("0.5,1; 0.3");
   ASSERT_EQ(s.size(), 2u);
@@ -50,9 +58,7 @@ TEST(ClipPrediction, ClippedSitesEndTogetherAndTheNoClipRunIsReported) {
   GTEST_SKIP() << "closures take too long under AddressSanitizer";
 #endif
   const Patient p = make_virtual_patient(1);
-  forward::ClosureOptions o;
-  o.model.ures = 16;
-  o.model.vres = 8;
+  const forward::ClosureOptions o = coarse_options();
   const auto r = simulate_clips(p, p.truth->parameters, o, {{}, {ClipSite{0.5, 1.0}}}, 2);
   ASSERT_EQ(r.size(), 2u);
   ASSERT_TRUE(r[0].quality.converged) << r[0].quality.reason;
@@ -70,9 +76,7 @@ TEST(ClipPrediction, ConcurrentCandidatesEqualSequentialOnes) {
   GTEST_SKIP() << "closures take too long under AddressSanitizer";
 #endif
   const Patient p = make_virtual_patient(2);
-  forward::ClosureOptions o;
-  o.model.ures = 16;
-  o.model.vres = 8;
+  const forward::ClosureOptions o = coarse_options();
   const std::vector<std::vector<ClipSite>> sites = {
       {}, {ClipSite{0.5, 1.0}}, {ClipSite{0.3, 1.0}}, {ClipSite{0.3, 1.0}, ClipSite{0.7, 1.0}}};
   const auto two = simulate_clips(p, p.truth->parameters, o, sites, 2);
@@ -114,9 +118,7 @@ TEST(ClipPrediction, IntervalsAddTheMeshsChangeToTheParametersSpread) {
   GTEST_SKIP() << "closures take too long under AddressSanitizer";
 #endif
   const Patient p = make_virtual_patient(1);
-  forward::ClosureOptions o;
-  o.model.ures = 16;
-  o.model.vres = 8;
+  const forward::ClosureOptions o = coarse_options();
   const ParameterSpace space("peak_pressure", p.truth->parameters);
   CalibrationRecord rec;
   rec.names = {space.specs()[0].name};
@@ -151,6 +153,34 @@ TEST(ClipPrediction, IntervalsAddTheMeshsChangeToTheParametersSpread) {
   propagate_clip_uncertainty(p, post, o, diastole, before, 1, 2, &t, MeshCheck{false, 1.0});
   EXPECT_EQ(t[0].uncertainty.sd_mesh[0], 0.0);
   EXPECT_NEAR(t[0].uncertainty.sd[0], u.sd_parameters[0], 1e-9);
+}
+
+// Two options tie when their EROAs differ by less than 1.96 SD of the difference; the mesh's
+// part is how much the refined mesh moves the difference, not either EROA.
+TEST(ClipPrediction, ATieCountsTheMeshsChangeOfTheDifference) {
+  auto option = [](double eroa, double refined) {
+    ClipScenario s;
+    s.quality.converged = true;
+    s.quality.orifice.eroa_mm2 = eroa;
+    ClipUncertainty& u = s.uncertainty;
+    u.computed = true;
+    u.at_points.resize(0, kClipOutcomes);  // no sigma points: the parameters add nothing
+    u.sd_parameters = Eigen::VectorXd::Zero(kClipOutcomes);
+    u.at_refined = Eigen::VectorXd::Constant(kClipOutcomes, refined);
+    u.sd_mesh = Eigen::VectorXd::Constant(kClipOutcomes, std::abs(refined - eroa));
+    u.sd = u.sd_mesh;
+    return s;
+  };
+  const SigmaPoints none;
+  // 10 against 12, both 3 lower on the finer mesh: the difference does not move, no tie
+  // (each EROA's own interval, +-5.9, would overlap the other's).
+  EXPECT_FALSE(indistinguishable(none, option(10, 7), option(12, 9)));
+  // The finer mesh turns the difference around (10 vs 12 -> 10 vs 10): SD 2, a tie.
+  EXPECT_TRUE(indistinguishable(none, option(10, 10), option(12, 10)));
+  // A difference of 5 with the mesh moving it by 2: beyond 1.96 x 2.
+  EXPECT_FALSE(indistinguishable(none, option(10, 10), option(15, 13)));
+  // A failed refined run (NaN): no tie is claimed.
+  EXPECT_FALSE(indistinguishable(none, option(10, std::nan("")), option(12, 10)));
 }
 
 }  // namespace

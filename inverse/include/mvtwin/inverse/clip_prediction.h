@@ -128,7 +128,7 @@ struct ClipUncertainty {
 /// `factor` times finer in each direction (ures and vres, rounded up to even), and the change
 /// taken as one SD. Measured on ten calibrated virtual patients without a clip
 /// (docs/clip-devices.md, "How sure the answer is"): the truth (the fine observation model)
-/// lay inside the parameters' 95 % interval for 2 of 10, with this term for 8 of 10.
+/// lay inside the parameters' 95 % interval for 2 of 10, with this term for 6 of 10.
 struct MeshCheck {
   bool enabled = true;
   double factor = 4.0 / 3.0;  ///< the paper's 30 x 30 -> 40 x 40
