@@ -111,8 +111,9 @@ void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
 }
 
 int run_calibrate(const CalibrateArgs& a) {
-  const Patient p = read_patient_for_run(a.file, a.use_detected);
   refuse_overwrite(a.out, a.force);
+  refuse_overwrite(summary_path(a.out), a.force);
+  const Patient p = read_patient_for_run(a.file, a.use_detected);
   forward::ClosureOptions o;
   ValveParameters start;  // the defaults: never the virtual patient's hidden values
   for (const std::string& s : a.sets) forward::apply_setting(s, &o, &start);
@@ -165,7 +166,7 @@ int run_calibrate(const CalibrateArgs& a) {
   rec.provenance.created_utc = utc_now_iso8601();
   rec.provenance.source = assumed_note(p);
   write_calibration_file(a.out, rec);
-  const fs::path js = fs::path(a.out).replace_extension(".json");
+  const fs::path js = summary_path(a.out);
   nlohmann::json summary = calibration_json(rec);
   print_calibration(rec, std::cout);
   if (a.use_detected) {

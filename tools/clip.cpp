@@ -227,7 +227,7 @@ int run_clip(const ClipArgs& a) {
   if (a.no_intervals) posterior.why_not = "--no-intervals";
   if (!a.out.empty()) {
     refuse_overwrite(a.out, a.force);
-    refuse_overwrite(fs::path(a.out).replace_extension(".json"), a.force);
+    refuse_overwrite(summary_path(a.out), a.force);
   }
   std::cout << "clip prediction for " << p.id << (p.synthetic ? " [SYNTHETIC]" : "") << " with "
             << source << std::endl;
@@ -390,7 +390,7 @@ int run_clip(const ClipArgs& a) {
     const forward::ClosureResult r = forward::simulate_closure(p.sequence, par, oc);
     if (!a.out.empty()) {
       write_simulation_result(a.out, r, oc, par, p, a.file, a.command_line);
-      const fs::path js = fs::path(a.out).replace_extension(".json");
+      const fs::path js = summary_path(a.out);
       write_json_file(js, j);
       std::cout << "wrote " << a.out << " and " << js.string() << "\n";
     }

@@ -30,6 +30,10 @@ void write_simulation_result(const std::filesystem::path& out, const forward::Cl
 }
 
 std::filesystem::path summary_path(const std::filesystem::path& result_file) {
+  if (result_file.extension() == ".json")
+    throw Error("--out " + result_file.string() +
+                ": the result is an HDF5 file (its JSON summary is written beside it with the "
+                "extension .json)");
   return std::filesystem::path(result_file).replace_extension(".json");
 }
 

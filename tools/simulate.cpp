@@ -26,10 +26,6 @@ int run_simulate(const SimulateArgs& a) {
   if (p.truth) par = p.truth->parameters;
   for (const std::string& s : a.sets) forward::apply_setting(s, &o, &par);
   if (o.record_every == 0) o.record_every = std::max(1, static_cast<int>(0.1 / o.dt));
-  if (!a.out.empty() && fs::path(a.out).extension() == ".json")
-    throw Error("--out " + a.out +
-                ": the result is an HDF5 file (its JSON summary is written "
-                "beside it with the extension .json)");
   const fs::path summary_json = a.out.empty() ? fs::path() : summary_path(a.out);
   if (!a.out.empty()) {
     refuse_overwrite(a.out, a.force);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/rng.h"
@@ -39,6 +40,10 @@ struct Draw {
   double al_length = 0, pl_length = 0, commissure_length = 0;
   double al_opening_ed = 0, pl_opening_ed = 0;
   double al_opening = 0, pl_opening = 0, bulge = 0, scallop_depth = 0;
+  // The widest (early-diastolic) orifice the opening angles are set to: the free-edge loop
+  // projected on the annulus plane, cm^2 (docs/virtual-patients.md, "Diastolic orifice").
+  double orifice_target_cm2 = 0;
+  double annulus_dilation = 1.0;  // area ratio of a dilated annulus to the drawn normal one
   // papillary tips
   double papillary_depth = 0, papillary_separation = 0, papillary_posterior = 0;
   double papillary_asymmetry = 0, papillary_rise = 0;
@@ -83,6 +88,11 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
   d.al_opening = rng.truncated_normal(75.0, 3.0, 66.0, 84.0) * kDeg;
   d.pl_opening = rng.truncated_normal(69.0, 3.0, 60.0, 78.0) * kDeg;
   d.al_opening_ed = rng.truncated_normal(58.0, 3.0, 50.0, 66.0) * kDeg;
+  // The drawn angles alone left a third of the normal valves' simulated valve area above 6 cm^2
+  // (the free-edge loop 4.7-6.8 cm^2 on cohort seed 2026's normal patients): the widest angles
+  // are instead scaled to an orifice, the patient's own draw of the anterior angle deciding where
+  // in the normal range (no extra draw, so every later draw stays the same patient's).
+  d.orifice_target_cm2 = std::clamp(4.3 + 0.3 * (d.al_opening / kDeg - 75.0) / 3.0, 3.8, 4.9);
   d.pl_opening_ed = rng.truncated_normal(50.0, 3.0, 42.0, 58.0) * kDeg;
   d.bulge = rng.uniform(0.06, 0.12);
   d.scallop_depth = rng.uniform(0.0, 0.12);
@@ -119,6 +129,7 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       const double dilation = rng.uniform(1.0, 1.1);
       d.alpm_diameter *= dilation;
       d.ap_diameter *= dilation;
+      d.annulus_dilation = dilation * dilation;
       const int g = rng.uniform() < 0.5 ? 0 : 2;  // marginal group of one papillary side
       h.restlength_factor[g] = rng.uniform(1.2, 1.5);
       if (rng.uniform() < 0.3) h.restlength_factor[2 - g] = rng.uniform(1.15, 1.4);
@@ -136,7 +147,9 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       // Dilated, flattened annulus; papillary tips displaced apically and apart (tethering).
       const double dilation = rng.uniform(1.15, 1.35);
       d.alpm_diameter *= dilation;
-      d.ap_diameter *= dilation * rng.uniform(1.0, 1.08);  // rounder
+      const double rounder = rng.uniform(1.0, 1.08);
+      d.ap_diameter *= dilation * rounder;
+      d.annulus_dilation = dilation * dilation * rounder;
       d.height_ratio_ed *= rng.uniform(0.6, 0.85);
       d.height_ratio_closed = d.height_ratio_ed + rng.uniform(0.0, 0.02);
       d.contraction *= 0.5;  // dysfunctional annulus contracts less
@@ -207,6 +220,21 @@ Curve sample_annulus(const AnnulusShape& shape, int ures, std::vector<double>* t
   return out;
 }
 
+/// Annulus at systolic activation a (0 in diastole, 1 at the first closed frame).
+AnnulusShape annulus_shape(const Draw& d, double a) {
+  const double k = 1.0 - d.contraction * a;
+  const double height_ratio = d.height_ratio_ed + (d.height_ratio_closed - d.height_ratio_ed) * a;
+  AnnulusShape shape{d.anterior_fraction * d.ap_diameter * k,
+                     (1.0 - d.anterior_fraction) * d.ap_diameter * k,
+                     0.5 * d.alpm_diameter * k,
+                     0.0,
+                     d.commissure_angle,
+                     -d.apical_excursion * a};
+  // Saddle height relative to the commissural width (as in the echo literature).
+  shape.height = height_ratio * 2.0 * shape.b * std::sin(d.commissure_angle);
+  return shape;
+}
+
 /// Open leaflet surface hanging from the annulus into the ventricle; `openness` 1 in early
 /// diastole (widest), 0 at end-diastole.
 LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double openness) {
@@ -245,6 +273,46 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     }
   }
   return LeafletGrid(ures, vres, std::move(P));
+}
+
+/// Free-edge loop of a leaflet grid projected on the annulus plane, cm^2.
+double free_edge_orifice_cm2(const LeafletGrid& g, const Curve& annulus) {
+  const AnnulusPlane plane = least_squares_plane(annulus);
+  Eigen::Vector3d va = Eigen::Vector3d::Zero();
+  for (int u = 0; u < g.ures(); ++u)
+    va += 0.5 * g.at(u, g.vres() - 1).cross(g.at((u + 1) % g.ures(), g.vres() - 1));
+  return units::mm2_to_cm2(std::abs(va.dot(plane.normal)));
+}
+
+/// Sets the widest opening angles: from end-diastole's towards the drawn ones (one scale for
+/// both leaflets, at most 88 degrees) until the early-diastolic free-edge loop reaches the
+/// patient's target orifice (times the annulus' dilation); the nearest end when out of reach.
+void set_widest_openings(Draw& d, int ures, int vres) {
+  std::vector<double> thetas;
+  const Curve annulus = sample_annulus(annulus_shape(d, 0.0), ures, &thetas);
+  const double al = d.al_opening, pl = d.pl_opening;
+  const double cap = 88.0 * kDeg;
+  double hi = 1e9;
+  if (al > d.al_opening_ed) hi = std::min(hi, (cap - d.al_opening_ed) / (al - d.al_opening_ed));
+  if (pl > d.pl_opening_ed) hi = std::min(hi, (cap - d.pl_opening_ed) / (pl - d.pl_opening_ed));
+  hi = std::min(hi, 3.0);
+  auto apply = [&](double lambda) {
+    d.al_opening = d.al_opening_ed + lambda * (al - d.al_opening_ed);
+    d.pl_opening = d.pl_opening_ed + lambda * (pl - d.pl_opening_ed);
+  };
+  auto orifice = [&](double lambda) {
+    apply(lambda);
+    return free_edge_orifice_cm2(open_leaflets(d, annulus, vres, 1.0), annulus);
+  };
+  const double target = d.orifice_target_cm2 * d.annulus_dilation;
+  double lo = 0.0;
+  if (orifice(hi) <= target) return apply(hi);
+  if (orifice(lo) >= target) return apply(lo);
+  for (int it = 0; it < 40; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (orifice(mid) < target ? lo : hi) = mid;
+  }
+  apply(0.5 * (lo + hi));
 }
 
 /// Rest-length factor per chordae group at which the chordae are just taut when the valve is
@@ -325,9 +393,10 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   if (!options.is_valid(&error)) throw Error("virtual patient: " + error);
   Rng rng(seed);
   const Pathology pathology = options.pathology ? *options.pathology : draw_pathology(rng);
-  const Draw d = draw_anatomy(rng, pathology);
+  Draw d = draw_anatomy(rng, pathology);
   const Eigen::Matrix4d pose = draw_pose(rng);
   const int ures = options.ures, vres = options.vres;
+  set_widest_openings(d, ures, vres);
 
   // Phases: diastolic frames first; the closure takes `closure_frames` frames after
   // end-diastole; then systole.
@@ -339,7 +408,6 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   const double t_ed = ed * frame_dt, t_fc = fc * frame_dt, t_end = (d.frames - 1) * frame_dt;
 
   const double intertrigonal = d.ap_diameter / d.ap_over_intertrigonal;
-  const double b_ed = 0.5 * d.alpm_diameter;
 
   Patient p;
   p.id = options.id.empty() ? "virtual-" + std::to_string(seed) : options.id;
@@ -373,15 +441,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     if (t > t_ed && t <= t_fc) a = smoothstep((t - t_ed) / (t_fc - t_ed));
     if (t > t_fc) a = 1.0 - 0.6 * (t - t_fc) / std::max(t_end - t_fc, 1e-9);
     const double k = 1.0 - d.contraction * a;
-    const double height_ratio = d.height_ratio_ed + (d.height_ratio_closed - d.height_ratio_ed) * a;
-    AnnulusShape shape{d.anterior_fraction * d.ap_diameter * k,
-                       (1.0 - d.anterior_fraction) * d.ap_diameter * k,
-                       b_ed * k,
-                       0.0,
-                       d.commissure_angle,
-                       -d.apical_excursion * a};
-    // Saddle height relative to the commissural width (as in the echo literature).
-    shape.height = height_ratio * 2.0 * shape.b * std::sin(d.commissure_angle);
+    const AnnulusShape shape = annulus_shape(d, a);
     std::vector<double> thetas;
     const Curve annulus_v = sample_annulus(shape, ures, &thetas);
 
@@ -472,6 +532,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       {"al_length_mm", d.al_length},
       {"pl_length_mm", d.pl_length},
       {"commissure_leaflet_length_mm", d.commissure_length},
+      {"widest_orifice_target_cm2", d.orifice_target_cm2 * d.annulus_dilation},
       {"al_opening_deg", d.al_opening / kDeg},
       {"pl_opening_deg", d.pl_opening / kDeg},
       {"al_opening_ed_deg", d.al_opening_ed / kDeg},

@@ -171,6 +171,15 @@ TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
   r = run("clip " + path("p.h5") + " --params " + path("p.h5") + " --at 0.5");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("not an mvtwin calibration file"), std::string::npos) << r.err;
+  // A result named .json would be replaced by its own summary: refused before any work.
+  r = run("clip " + path("p.h5") + " --true-params --at 0.5 --out " + path("clip.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("the result is an HDF5 file"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("clip.json")));
+  r = run("calibrate " + path("p.h5") + " --out " + path("c.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("the result is an HDF5 file"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("c.json")));
 }
 
 TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
