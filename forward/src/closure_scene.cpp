@@ -295,7 +295,19 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
       throw Error("closure simulation: a chordae rupture must have 0 <= s_begin < s_end <= 1");
   }
   ClosureScene sc;
-  sc.model = build_valve_model(seq, opt.model);
+  // A device's grasp refined (ModelOptions::refine_factor): each band and the stress region
+  // around it (kGraspStressMarginMm), as deep as the leaflet inserts plus that margin.
+  ModelOptions mo = opt.model;
+  if (mo.refine_factor > 1) {
+    for (const ClipOptions& clip : opt.clips) {
+      if (!(clip.width_mm > 0)) continue;
+      const auto [ia, ip] = clip_insertion_mm(seq, clip);
+      const double hw = 0.5 * clip.width_mm + kGraspStressMarginMm;
+      mo.refine_regions.push_back({clip.anterior_s, hw, ia + kGraspStressMarginMm});
+      mo.refine_regions.push_back({clip.posterior_s, hw, ip + kGraspStressMarginMm});
+    }
+  }
+  sc.model = build_valve_model(seq, mo);
   const ValveModel& model = sc.model;
   const SolidMesh& mesh = model.mesh;
   sc.leaflet_material = {

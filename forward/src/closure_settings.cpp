@@ -98,6 +98,7 @@ const std::map<std::string, Field>& fields() {
     integer("ures", [](ClosureOptions& o) -> int& { return o.model.ures; });
     integer("vres", [](ClosureOptions& o) -> int& { return o.model.vres; });
     integer("layers", [](ClosureOptions& o) -> int& { return o.model.layers; });
+    integer("grasp_refine", [](ClosureOptions& o) -> int& { return o.model.refine_factor; });
     integer("marginal_chordae", [](ClosureOptions& o) -> int& { return o.model.marginal_chordae; });
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
     integer("settle_newton_iterations",

@@ -50,6 +50,17 @@ bool ModelOptions::is_valid(std::string* error) const {
     *error = "smoothing_roughness_mm must be >= 0 and max_smoothing_passes in 0..1000";
     return false;
   }
+  if (refine_factor < 1 || refine_factor > 6) {
+    *error = "refine_factor must be in 1..6";
+    return false;
+  }
+  for (const RefineRegion& r : refine_regions) {
+    if (!(r.s >= 0 && r.s <= 1 && r.half_width_mm >= 0 && r.half_width_mm < 100 &&
+          r.from_edge_mm >= 0 && r.from_edge_mm < 100)) {
+      *error = "a refinement region needs s in [0, 1] and a half width and depth in [0, 100) mm";
+      return false;
+    }
+  }
   if (!(al_thickness_mm > 0.1 && al_thickness_mm < 5 && pl_thickness_mm > 0.1 &&
         pl_thickness_mm < 5)) {
     *error = "leaflet thickness must be in (0.1, 5) mm";
@@ -132,7 +143,8 @@ struct SurfaceMesh {
 /// spacing (perimeter/ures, depth step) inside, points every depth step along the free edge, and
 /// a Delaunay triangulation (in coordinates scaled so that the lattice is square) clipped to the
 /// leaflet.
-SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
+SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
+                         const std::vector<ModelOptions::RefineRegion>& regions, int factor) {
   const double P = un.perimeter(), hx = P / U;
   double mean_length = 0.0;
   for (int u = 0; u < U; ++u) mean_length += un.free_edge(un.xi(static_cast<double>(u) / U)) / U;
@@ -143,6 +155,25 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
   constexpr double kMaxAnisotropy = 2.5;
   const double hd = std::max(mean_length / (V - 1), hx / kMaxAnisotropy);
   const double scale = hx / hd;  // depth -> lattice units
+  // Refinement regions in the unrolled plane: the site's arc length, its half width, and the
+  // depth from the free edge. `grow` (mm along the annulus, lattice units in depth) widens them.
+  struct Zone {
+    double xi, half_width, from_edge;
+  };
+  std::vector<Zone> zones;
+  if (factor > 1) {
+    for (const auto& r : regions) zones.push_back({un.xi(r.s), r.half_width_mm, r.from_edge_mm});
+  }
+  auto in_zone = [&](double xi, double depth, double grow) {
+    for (const Zone& z : zones) {
+      double dx = xi - z.xi;
+      dx -= P * std::round(dx / P);
+      if (std::abs(dx) <= z.half_width + grow &&
+          depth >= un.free_edge(xi) - z.from_edge - grow * hd / hx)
+        return true;
+    }
+    return false;
+  };
   SurfaceMesh sm;
   auto add = [&](double xi, double depth, bool edge) {
     sm.plane.emplace_back(xi, depth);
@@ -160,7 +191,8 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
       const double xi = P * k / fine;
       const Eigen::Vector2d q(xi, un.free_edge(xi) * scale);
       const double to_end = Eigen::Vector2d(P - xi, (un.free_edge(0.0) * scale - q.y())).norm();
-      if ((q - last).norm() >= hx && to_end >= 0.5 * hx) {
+      const double step = in_zone(xi, un.free_edge(xi), 0.0) ? hx / factor : hx;
+      if ((q - last).norm() >= step && to_end >= 0.5 * step) {
         edge.push_back(q);
         last = q;
       }
@@ -187,7 +219,46 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V) {
           break;
         }
       }
-      if (!near) add(xi + 1e-4 * hx * jitter(u, j), d + 1e-4 * hd * jitter(j, u), false);
+      if (!near && !in_zone(xi, d, 0.5 * hx))
+        add(xi + 1e-4 * hx * jitter(u, j), d + 1e-4 * hd * jitter(j, u), false);
+    }
+  }
+  // Inside the refinement zones (and half a coarse step around them, where the coarse lattice
+  // was left out), a lattice `factor` times finer, away from the free edge.
+  if (!zones.empty()) {
+    const double fx = hx / factor, fd = hd / factor;
+    for (size_t zi = 0; zi < zones.size(); ++zi) {
+      const Zone& z = zones[zi];
+      const int kx = static_cast<int>(std::ceil((z.half_width + 0.5 * hx) / fx)) + 1;
+      for (int j = 1;; ++j) {
+        const double d = j * fd;
+        if (d > 1.5 * mean_length) break;
+        for (int k = -kx; k <= kx; ++k) {
+          double xi = z.xi + (k + 0.5 * (j % 2)) * fx;
+          xi -= P * std::floor(xi / P);
+          if (!in_zone(xi, d, 0.5 * hx) || d > un.free_edge(xi) - 0.5 * fd) continue;
+          // Once per point: the first zone that holds it places it.
+          bool earlier = false;
+          for (size_t zj = 0; zj < zi && !earlier; ++zj) {
+            double dx = xi - zones[zj].xi;
+            dx -= P * std::round(dx / P);
+            earlier = std::abs(dx) <= zones[zj].half_width + 0.5 * hx &&
+                      d >= un.free_edge(xi) - zones[zj].from_edge - 0.5 * hd;
+          }
+          if (earlier) continue;
+          const Eigen::Vector2d q(xi, d * scale);
+          bool near = false;
+          for (const auto& e : edge) {
+            Eigen::Vector2d diff = q - e;
+            diff.x() -= P * std::round(diff.x() / P);
+            if (diff.norm() < 0.6 * fx) {
+              near = true;
+              break;
+            }
+          }
+          if (!near) add(xi + 1e-4 * fx * jitter(k + 1000, j), d + 1e-4 * fd * jitter(j, k), false);
+        }
+      }
     }
   }
   // Periodic Delaunay (copies of the points near the seam on the other side) clipped to the
@@ -355,7 +426,7 @@ ValveModel build_valve_model(const ValveSequence& seq, const ModelOptions& opt) 
     }
   }
   const Unrolled un(grid, U);
-  const SurfaceMesh sm = mesh_surface(un, U, opt.vres);
+  const SurfaceMesh sm = mesh_surface(un, U, opt.vres, opt.refine_regions, opt.refine_factor);
   const int N = static_cast<int>(sm.plane.size());
   m.surface_nodes = N;
   m.surface_st.resize(N, 2);

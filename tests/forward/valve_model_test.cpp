@@ -115,6 +115,53 @@ TEST(ValveModel, NoSliversOverACohort) {
   EXPECT_GT(worst, 0.01);
 }
 
+// A refinement region makes the lattice denser there and only there: the surface nodes inside
+// it grow about factor^2-fold, those far from it stay, and the elements keep their quality.
+TEST(ValveModel, RefinementRegionIsDenserThereAndOnlyThere) {
+  double worst = 1.0;
+  for (int seed = 330; seed < 335; ++seed) {
+    const Patient p = make_virtual_patient(seed);
+    ModelOptions o;
+    const ValveModel plain = build_valve_model(p.sequence, o);
+    o.refine_factor = 3;
+    o.refine_regions = {{0.25, 6.0, 8.0}, {0.75, 6.0, 6.0}};
+    const ValveModel fine = build_valve_model(p.sequence, o);
+    worst = std::min(worst, fine.min_quality);
+    // Nodes within a region's core (1 mm inside its border) and beyond 2 coarse steps of both.
+    auto count = [&](const ValveModel& m, bool inside) {
+      int n = 0;
+      const double hx = m.perimeter / o.ures;
+      for (int i = 0; i < m.surface_nodes; ++i) {
+        const double t = m.surface_st(i, 1);
+        if (t <= 0.0) continue;
+        const double depth = m.surface_plane(i, 1), from_edge = depth * (1.0 / t - 1.0);
+        bool in_core = false, near = false;
+        for (const auto& r : o.refine_regions) {
+          // Sites at grid positions 0.25 and 0.75: a quarter and three quarters of the columns.
+          const double xi = m.surface_plane(
+              m.annulus_column[static_cast<size_t>(std::lround(r.s * o.ures)) % o.ures], 0);
+          double d = m.surface_plane(i, 0) - xi;
+          d -= m.perimeter * std::round(d / m.perimeter);
+          in_core =
+              in_core || (std::abs(d) < r.half_width_mm - 1.0 && from_edge < r.from_edge_mm - 1.0);
+          near = near || std::abs(d) < r.half_width_mm + 2 * hx;
+        }
+        if (inside ? in_core : !near) ++n;
+      }
+      return n;
+    };
+    EXPECT_GT(count(fine, true), 5 * count(plain, true)) << "seed " << seed;
+    EXPECT_NEAR(count(fine, false), count(plain, false), 0.05 * count(plain, false))
+        << "seed " << seed;
+  }
+  EXPECT_GT(worst, 0.01);
+  ModelOptions bad;
+  bad.refine_factor = 9;
+  std::string why;
+  EXPECT_FALSE(bad.is_valid(&why));
+  EXPECT_NE(why.find("refine_factor"), std::string::npos);
+}
+
 TEST(ValveModel, AtrialSamplerReproducesTheSurface) {
   const Patient p = make_virtual_patient(24);
   const ValveModel m = build_valve_model(p.sequence);

@@ -37,6 +37,16 @@ struct ModelOptions {
   /// left as they are. 0 switches smoothing off.
   double smoothing_roughness_mm = 0.1;
   int max_smoothing_passes = 50;
+  /// Local refinement (issue 39, item 1: a device's grasp is under-resolved at the paper's
+  /// grid): inside each region the surface lattice and the free edge's points are
+  /// `refine_factor` times denser (1: none). A region is a stretch of one leaflet around grid
+  /// position s (0-1 around the annulus, as ClipOptions' sites), half_width_mm to either side
+  /// along the annulus and from_edge_mm deep from the free edge (unrolled leaflet plane, mm).
+  struct RefineRegion {
+    double s = 0, half_width_mm = 0, from_edge_mm = 0;
+  };
+  std::vector<RefineRegion> refine_regions;
+  int refine_factor = 1;
 
   bool is_valid(std::string* error) const;
 };
