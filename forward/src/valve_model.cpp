@@ -156,7 +156,8 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
   const double hd = std::max(mean_length / (V - 1), hx / kMaxAnisotropy);
   const double scale = hx / hd;  // depth -> lattice units
   // Refinement regions in the unrolled plane: the site's arc length, its half width, and the
-  // depth from the free edge. `grow` (mm along the annulus, lattice units in depth) widens them.
+  // depth from the free edge. `grow` (mm along the annulus; the same in lattice units in depth)
+  // widens them; only the first `count` zones are asked.
   struct Zone {
     double xi, half_width, from_edge;
   };
@@ -164,8 +165,10 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
   if (factor > 1) {
     for (const auto& r : regions) zones.push_back({un.xi(r.s), r.half_width_mm, r.from_edge_mm});
   }
-  auto in_zone = [&](double xi, double depth, double grow) {
-    for (const Zone& z : zones) {
+  auto in_zone = [&](double xi, double depth, double grow,
+                     size_t count = std::numeric_limits<size_t>::max()) {
+    for (size_t i = 0; i < std::min(count, zones.size()); ++i) {
+      const Zone& z = zones[i];
       double dx = xi - z.xi;
       dx -= P * std::round(dx / P);
       if (std::abs(dx) <= z.half_width + grow &&
@@ -175,14 +178,23 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
     return false;
   };
   SurfaceMesh sm;
-  auto add = [&](double xi, double depth, bool edge) {
+  // Whether a point of the scaled plane lies within `radius` of a free-edge point.
+  std::vector<Eigen::Vector2d> edge;
+  auto near_edge = [&](const Eigen::Vector2d& q, double radius) {
+    for (const auto& e : edge) {
+      Eigen::Vector2d diff = q - e;
+      diff.x() -= P * std::round(diff.x() / P);
+      if (diff.norm() < radius) return true;
+    }
+    return false;
+  };
+  auto add = [&](double xi, double depth, bool on_edge) {
     sm.plane.emplace_back(xi, depth);
-    sm.free_edge.push_back(edge);
+    sm.free_edge.push_back(on_edge);
     return static_cast<int>(sm.plane.size()) - 1;
   };
   for (int u = 0; u < U; ++u) sm.annulus_column.push_back(add(un.xi(double(u) / U), 0.0, false));
   // Free edge: a point every lattice unit of the scaled curve.
-  std::vector<Eigen::Vector2d> edge;
   {
     const int fine = 64 * U;
     Eigen::Vector2d last(0.0, un.free_edge(0.0) * scale);
@@ -209,17 +221,7 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
         if (d > 1.5 * mean_length) break;
         continue;
       }
-      const Eigen::Vector2d q(xi, d * scale);
-      bool near = false;
-      for (const auto& e : edge) {
-        Eigen::Vector2d diff = q - e;
-        diff.x() -= P * std::round(diff.x() / P);
-        if (diff.norm() < 0.6 * hx) {
-          near = true;
-          break;
-        }
-      }
-      if (!near && !in_zone(xi, d, 0.5 * hx))
+      if (!near_edge(Eigen::Vector2d(xi, d * scale), 0.6 * hx) && !in_zone(xi, d, 0.5 * hx))
         add(xi + 1e-4 * hx * jitter(u, j), d + 1e-4 * hd * jitter(j, u), false);
     }
   }
@@ -238,25 +240,9 @@ SurfaceMesh mesh_surface(const Unrolled& un, int U, int V,
           xi -= P * std::floor(xi / P);
           if (!in_zone(xi, d, 0.5 * hx) || d > un.free_edge(xi) - 0.5 * fd) continue;
           // Once per point: the first zone that holds it places it.
-          bool earlier = false;
-          for (size_t zj = 0; zj < zi && !earlier; ++zj) {
-            double dx = xi - zones[zj].xi;
-            dx -= P * std::round(dx / P);
-            earlier = std::abs(dx) <= zones[zj].half_width + 0.5 * hx &&
-                      d >= un.free_edge(xi) - zones[zj].from_edge - 0.5 * hd;
-          }
-          if (earlier) continue;
-          const Eigen::Vector2d q(xi, d * scale);
-          bool near = false;
-          for (const auto& e : edge) {
-            Eigen::Vector2d diff = q - e;
-            diff.x() -= P * std::round(diff.x() / P);
-            if (diff.norm() < 0.6 * fx) {
-              near = true;
-              break;
-            }
-          }
-          if (!near) add(xi + 1e-4 * fx * jitter(k + 1000, j), d + 1e-4 * fd * jitter(j, k), false);
+          if (in_zone(xi, d, 0.5 * hx, zi)) continue;
+          if (!near_edge(Eigen::Vector2d(xi, d * scale), 0.6 * fx))
+            add(xi + 1e-4 * fx * jitter(k + 1000, j), d + 1e-4 * fd * jitter(j, k), false);
         }
       }
     }

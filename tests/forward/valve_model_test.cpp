@@ -137,9 +137,13 @@ TEST(ValveModel, RefinementRegionIsDenserThereAndOnlyThere) {
         const double depth = m.surface_plane(i, 1), from_edge = depth * (1.0 / t - 1.0);
         bool in_core = false, near = false;
         for (const auto& r : o.refine_regions) {
-          // Sites at grid positions 0.25 and 0.75: a quarter and three quarters of the columns.
-          const double xi = m.surface_plane(
-              m.annulus_column[static_cast<size_t>(std::lround(r.s * o.ures)) % o.ures], 0);
+          // The site's arc length: the annulus columns' unrolled positions, interpolated.
+          const double x = r.s * o.ures;
+          const int u0 = static_cast<int>(std::floor(x)) % o.ures, u1 = (u0 + 1) % o.ures;
+          const double xi0 = m.surface_plane(m.annulus_column[static_cast<size_t>(u0)], 0);
+          double xi1 = m.surface_plane(m.annulus_column[static_cast<size_t>(u1)], 0);
+          if (xi1 < xi0) xi1 += m.perimeter;
+          const double xi = xi0 + (x - std::floor(x)) * (xi1 - xi0);
           double d = m.surface_plane(i, 0) - xi;
           d -= m.perimeter * std::round(d / m.perimeter);
           in_core =
