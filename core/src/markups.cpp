@@ -10,6 +10,7 @@
 
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "raw_voxels.h"
 
 namespace mvtwin {
 namespace {
@@ -19,15 +20,9 @@ std::string upper(std::string s) {
   return s;
 }
 
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
-}
-
 /// Sign flips from the named system to RAS.
 Eigen::Vector3d to_ras(const std::string& system, const std::string& what) {
-  const std::string s = upper(trim(system));
+  const std::string s = upper(raw::trim(system));
   if (s == "RAS" || s == "0") return {1, 1, 1};
   if (s == "LPS" || s == "1") return {-1, -1, 1};
   throw Error(what + ": markups in coordinate system '" + system +
@@ -58,13 +53,13 @@ MarkupList read_markups(const std::filesystem::path& path) {
     std::vector<std::string> columns = {"id", "x", "y", "z"};
     int row = 0;
     while (std::getline(ls, line)) {
-      line = trim(line);
+      line = raw::trim(line);
       if (line.empty()) continue;
       if (line[0] == '#') {
         const auto eq = line.find('=');
         if (eq == std::string::npos) continue;
-        std::string key = trim(line.substr(1, eq - 1));
-        const std::string value = trim(line.substr(eq + 1));
+        std::string key = raw::trim(line.substr(1, eq - 1));
+        const std::string value = raw::trim(line.substr(eq + 1));
         std::transform(key.begin(), key.end(), key.begin(),
                        [](unsigned char c) { return std::tolower(c); });
         if (key == "coordinatesystem") {
@@ -77,7 +72,7 @@ MarkupList read_markups(const std::filesystem::path& path) {
           columns.clear();
           std::istringstream cs(value);
           std::string c;
-          while (std::getline(cs, c, ',')) columns.push_back(trim(c));
+          while (std::getline(cs, c, ',')) columns.push_back(raw::trim(c));
         }
         continue;
       }
@@ -85,7 +80,7 @@ MarkupList read_markups(const std::filesystem::path& path) {
       std::vector<std::string> cells;
       std::istringstream cs(line);
       std::string c;
-      while (std::getline(cs, c, ',')) cells.push_back(trim(c));
+      while (std::getline(cs, c, ',')) cells.push_back(raw::trim(c));
       auto col = [&](const std::string& name) -> int {
         const auto it = std::find(columns.begin(), columns.end(), name);
         return it == columns.end() ? -1 : static_cast<int>(it - columns.begin());

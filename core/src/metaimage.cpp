@@ -53,8 +53,6 @@ bool truth(const std::string& s) {
   return t == "true" || t == "1";
 }
 
-std::string fmt(double v) { return raw::format_number(v); }
-
 }  // namespace
 
 std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
@@ -95,7 +93,7 @@ std::vector<ImageVolume> read_metaimage_series(const fs::path& path) {
   const std::vector<double> ds = numbers(field["dimsize"], nd, what + " (DimSize)");
   for (double d : ds)
     if (!(d >= 1 && d < 1e6 && d == std::floor(d)))
-      throw Error(what + ": bad DimSize entry " + fmt(d));
+      throw Error(what + ": bad DimSize entry " + raw::format_number(d));
   const VoxelType type = met_type(field["elementtype"], what);
   std::vector<double> sp(nd, 1.0), off(nd, 0.0), tm;
   for (const char* k : {"elementspacing", "elementsize"})
@@ -194,15 +192,16 @@ void write_metaimage_series(const fs::path& path, const std::vector<ImageVolume>
     for (int c = 0; c < nd; ++c) {
       double v = a == c ? 1.0 : 0.0;
       if (a < 3 && c < 3) v = kLpsToRas[c] * g.direction(c, a);
-      h << " " << fmt(v);
+      h << " " << raw::format_number(v);
     }
   }
   const Eigen::Vector3d o = kLpsToRas.cwiseProduct(g.origin);
-  h << "\nOffset = " << fmt(o[0]) << " " << fmt(o[1]) << " " << fmt(o[2]);
-  if (series) h << " " << fmt(s[0].time_s);
-  h << "\nElementSpacing = " << fmt(g.spacing[0]) << " " << fmt(g.spacing[1]) << " "
-    << fmt(g.spacing[2]);
-  if (series) h << " " << fmt(dt);
+  h << "\nOffset = " << raw::format_number(o[0]) << " " << raw::format_number(o[1]) << " "
+    << raw::format_number(o[2]);
+  if (series) h << " " << raw::format_number(s[0].time_s);
+  h << "\nElementSpacing = " << raw::format_number(g.spacing[0]) << " "
+    << raw::format_number(g.spacing[1]) << " " << raw::format_number(g.spacing[2]);
+  if (series) h << " " << raw::format_number(dt);
   h << "\nDimSize = " << g.size[0] << " " << g.size[1] << " " << g.size[2];
   if (series) h << " " << s.size();
   std::vector<float> values;

@@ -87,12 +87,10 @@ Eigen::Vector3d space_to_ras(const std::string& space, const std::string& what) 
   throw Error(what + ": unsupported NRRD space '" + trim(space) + "' (RAS, LPS or LAS)");
 }
 
-std::string fmt(double v) { return raw::format_number(v); }
-
-std::string fmt(const Eigen::Vector3d& v) {
+std::string format_vector(const Eigen::Vector3d& v) {
   std::string s = "(";
   for (int k = 0; k < 3; ++k) {
-    s += fmt(v[k]);
+    s += raw::format_number(v[k]);
     s += k < 2 ? ',' : ')';
   }
   return s;
@@ -331,13 +329,14 @@ void write_nrrd_series(const fs::path& path, const std::vector<ImageVolume>& s) 
   for (int k = 0; k < 3; ++k) h << " " << s.front().size[k];
   h << "\nspace directions:" << (series ? " none" : "");
   for (int k = 0; k < 3; ++k)
-    h << " " << fmt(Eigen::Vector3d(s.front().direction.col(k) * s.front().spacing[k]));
+    h << " " << format_vector(Eigen::Vector3d(s.front().direction.col(k) * s.front().spacing[k]));
   h << "\nkinds:" << (series ? " list" : "") << " domain domain domain\n";
   if (series) h << "labels: \"time\" \"\" \"\" \"\"\n";
-  h << "endian: little\nencoding: gzip\nspace origin: " << fmt(s.front().origin) << "\n";
+  h << "endian: little\nencoding: gzip\nspace origin: " << format_vector(s.front().origin) << "\n";
   if (series) {
     h << "axis 0 index type:=numeric\naxis 0 index values:=";
-    for (std::size_t f = 0; f < s.size(); ++f) h << (f ? " " : "") << fmt(s[f].time_s);
+    for (std::size_t f = 0; f < s.size(); ++f)
+      h << (f ? " " : "") << raw::format_number(s[f].time_s);
     h << "\nDataNodeClassName:=vtkMRMLScalarVolumeNode\n";
   }
   h << "\n";

@@ -8,6 +8,7 @@
 #include "hdf5_io.h"
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/nan.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/version.h"
 #include "orifice_io.h"
@@ -15,7 +16,6 @@
 namespace mvtwin {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr const char* kGridConvention =
     "u = 0..ures-1 runs once around the annulus from the anterolateral commissure (u=0) over the "
     "anterior leaflet to the posteromedial commissure (u=ures/2) and over the posterior leaflet "

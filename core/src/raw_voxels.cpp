@@ -157,9 +157,9 @@ std::string lower(std::string s) {
 }
 
 std::string trim(const std::string& s) {
-  const std::size_t a = s.find_first_not_of(" \t\r");
+  const std::size_t a = s.find_first_not_of(" \t\r\n");
   if (a == std::string::npos) return "";
-  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
+  return s.substr(a, s.find_last_not_of(" \t\r\n") - a + 1);
 }
 
 std::string format_number(double v) {

@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/nan.h"
 #include "mvtwin/core/triangle_bvh.h"
 
 namespace mvtwin::detection {
@@ -18,7 +19,6 @@ namespace {
 
 using std::numbers::pi;
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr int kDense = 1440;  // samples of the dense annulus curve (0.25 degree)
 
 // Codes of the working label volume.

@@ -11,6 +11,7 @@
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/closure_measures.h"
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/stopwatch.h"
 #include "mvtwin/forward/chorda.h"
 #include "mvtwin/forward/interpenetration.h"
 #include "run_both.h"
@@ -19,9 +20,6 @@ namespace mvtwin::forward {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 StepOutcome failed(Outcome o, std::string message) { return {o, std::move(message)}; }
 

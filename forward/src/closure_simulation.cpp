@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/stopwatch.h"
 #include "mvtwin/forward/closure_integrator.h"
 #include "mvtwin/forward/closure_scene.h"
 #include "mvtwin/forward/closure_settings.h"
@@ -17,9 +18,6 @@ namespace mvtwin::forward {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 /// The closure of a built scene; wall_s counts from t_start (the scene's build included).
 ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& opt,

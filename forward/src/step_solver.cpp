@@ -1,6 +1,7 @@
 #include "mvtwin/forward/step_solver.h"
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/stopwatch.h"
 #include "run_both.h"
 #include "supernodal_numeric.h"
 
@@ -51,9 +52,6 @@ bool parse_linear_solver(const std::string& text, LinearSolver* out) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
 
 /// CHOLMOD (SuiteSparse 5) runs parallel loops with a compiled-in 4 OpenMP threads; on this
 /// machine's 2 cores, and beside parallel candidate simulations, they only contend. A

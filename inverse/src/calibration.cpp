@@ -12,12 +12,11 @@
 #include <nlopt.hpp>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/nan.h"
 #include "mvtwin/forward/closure_settings.h"
 
 namespace mvtwin::inverse {
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// Evaluations through one place: history, best point, progress.
 class Tracker {

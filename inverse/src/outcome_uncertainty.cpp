@@ -7,12 +7,12 @@
 #include <Eigen/Eigenvalues>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/nan.h"
 #include "mvtwin/inverse/parameter_space.h"
 
 namespace mvtwin::inverse {
 
 namespace {
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// The largest a in (0, 1] with x + a d inside [lo, hi] (0 when x itself is outside).
 double room(const Eigen::VectorXd& x, const Eigen::VectorXd& d, const Eigen::VectorXd& lo,

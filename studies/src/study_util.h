@@ -10,18 +10,18 @@
 
 #include <nlohmann/json.hpp>
 
+#include "mvtwin/core/nan.h"
 #include "mvtwin/core/patient.h"
+#include "mvtwin/core/stopwatch.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::studies::detail {
 
-inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using mvtwin::kNaN;
 
-inline double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using mvtwin::seconds_since;
 
 /// Every option of a simulation model as name -> text (configurations, reports).
 nlohmann::json describe(const forward::ClosureOptions& o);

@@ -18,13 +18,13 @@ namespace fs = std::filesystem;
 
 CalibrationRecord sample() { return test_support::sample_calibration_record(); }
 
-fs::path temp(const std::string& name) {
+fs::path calibration_temp(const std::string& name) {
   return fs::temp_directory_path() / ("mvtwin_calib_" + std::to_string(getpid()) + "_" + name);
 }
 
 TEST(CalibrationFile, RoundTrip) {
   const CalibrationRecord a = sample();
-  const fs::path p = temp("rt.h5");
+  const fs::path p = calibration_temp("rt.h5");
   write_calibration_file(p, a);
   const CalibrationRecord b = read_calibration_file(p);
   fs::remove(p);
@@ -57,7 +57,7 @@ TEST(CalibrationFile, ASearchModelsFiguresRoundTrip) {
   a.search_error_before_mm = 1.4;
   a.search_error_after_mm = 0.55;
   a.refinement = "Gauss-Newton step kept (damping 0.3): 0.62 -> 0.60 mm on the 30 x 30 model";
-  const fs::path p = temp("search.h5");
+  const fs::path p = calibration_temp("search.h5");
   write_calibration_file(p, a);
   const CalibrationRecord b = read_calibration_file(p);
   fs::remove(p);
@@ -69,7 +69,7 @@ TEST(CalibrationFile, ASearchModelsFiguresRoundTrip) {
 }
 
 TEST(CalibrationFile, InconsistentRecordIsRefusedAndTheOldFileKept) {
-  const fs::path p = temp("keep.h5");
+  const fs::path p = calibration_temp("keep.h5");
   write_calibration_file(p, sample());
   CalibrationRecord bad = sample();
   bad.sd.resize(1);
@@ -79,11 +79,11 @@ TEST(CalibrationFile, InconsistentRecordIsRefusedAndTheOldFileKept) {
 }
 
 TEST(CalibrationFile, OtherFilesAreNamedAsSuch) {
-  const fs::path p = temp("not.h5");
+  const fs::path p = calibration_temp("not.h5");
   { std::ofstream(p) << "not hdf5"; }
   EXPECT_THROW(read_calibration_file(p), Error);
   fs::remove(p);
-  EXPECT_THROW(read_calibration_file(temp("missing.h5")), Error);
+  EXPECT_THROW(read_calibration_file(calibration_temp("missing.h5")), Error);
 }
 
 }  // namespace

@@ -12,7 +12,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp(const std::string& name) {
+fs::path markups_temp(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / "mvtwin_markups_test";
   fs::create_directories(d);
   return d / name;
@@ -22,7 +22,7 @@ void write(const fs::path& p, const std::string& text) { std::ofstream(p) << tex
 
 // A point list as 3D Slicer 5 writes it (the documentation's example layout): LPS positions.
 TEST(Markups, SlicerJsonInLpsLandsAtRas) {
-  const fs::path p = temp("tips.mrk.json");
+  const fs::path p = markups_temp("tips.mrk.json");
   write(
       p,
       R"({"@schema": "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/markups-schema-v1.0.3.json#",
@@ -40,11 +40,11 @@ TEST(Markups, SlicerJsonInLpsLandsAtRas) {
   ASSERT_EQ(m.skipped.size(), 1u);
 
   // The same points written in RAS land at the same place; and our writer round-trips.
-  const fs::path q = temp("tips_ras.mrk.json");
+  const fs::path q = markups_temp("tips_ras.mrk.json");
   write(q, R"({"markups": [{"type": "Fiducial", "coordinateSystem": "RAS", "controlPoints": [
   { "label": "a", "position": [53.5, 73.25, 10.0] }]}]})");
   EXPECT_EQ(read_markups(q).points[0].position, m.points[0].position);
-  const fs::path w = temp("written.mrk.json");
+  const fs::path w = markups_temp("written.mrk.json");
   write_markups_json(w, m.points);
   const MarkupList back = read_markups(w);
   ASSERT_EQ(back.points.size(), 2u);
@@ -53,7 +53,7 @@ TEST(Markups, SlicerJsonInLpsLandsAtRas) {
 }
 
 TEST(Markups, LegacyFcsv) {
-  const fs::path p = temp("tips.fcsv");
+  const fs::path p = markups_temp("tips.fcsv");
   write(p,
         "# Markups fiducial file version = 4.13\n# CoordinateSystem = LPS\n"
         "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
@@ -62,7 +62,7 @@ TEST(Markups, LegacyFcsv) {
   ASSERT_EQ(m.points.size(), 2u);
   EXPECT_EQ(m.points[0].label, "PMPM");
   EXPECT_EQ(m.points[0].position, Eigen::Vector3d(19.5, -13.25, 29.0));
-  const fs::path r = temp("old.fcsv");  // Slicer 4.4's numeric code: 0 = RAS
+  const fs::path r = markups_temp("old.fcsv");  // Slicer 4.4's numeric code: 0 = RAS
   write(r,
         "# Markups fiducial file version = 4.4\n# CoordinateSystem = 0\n"
         "# columns = id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,desc,associatedNodeID\n"
@@ -81,18 +81,19 @@ TEST(Markups, BadFilesAreNamed) {
       EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
     }
   };
-  expect(temp("ijk.mrk.json"),
+  expect(markups_temp("ijk.mrk.json"),
          R"({"markups":[{"coordinateSystem":"IJK","controlPoints":[{"position":[1,2,3]}]}]})",
          "coordinate system 'IJK'");
-  expect(temp("broken.mrk.json"), R"({"markups":[{"controlPoints":[{"position":[1,2,)",
+  expect(markups_temp("broken.mrk.json"), R"({"markups":[{"controlPoints":[{"position":[1,2,)",
          "not a valid markups JSON");
-  expect(temp("nomarkups.mrk.json"), R"({"points":[]})", "no \"markups\" list");
-  expect(temp("nan.mrk.json"),
+  expect(markups_temp("nomarkups.mrk.json"), R"({"points":[]})", "no \"markups\" list");
+  expect(markups_temp("nan.mrk.json"),
          R"({"markups":[{"controlPoints":[{"label":"x","position":[1,"a",3]}]}]})", "non-numeric");
-  expect(temp("empty.mrk.json"), R"({"markups":[{"controlPoints":[]}]})",
+  expect(markups_temp("empty.mrk.json"), R"({"markups":[{"controlPoints":[]}]})",
          "no defined control points");
-  expect(temp("bad.fcsv"), "# columns = id,x,y,z,label\n0,1,zz,3,a\n", "'zz' is not a number");
-  EXPECT_THROW(read_markups(temp("missing.mrk.json")), Error);
+  expect(markups_temp("bad.fcsv"), "# columns = id,x,y,z,label\n0,1,zz,3,a\n",
+         "'zz' is not a number");
+  EXPECT_THROW(read_markups(markups_temp("missing.mrk.json")), Error);
 }
 
 }  // namespace

@@ -12,7 +12,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp(const std::string& name) {
+fs::path mesh_temp(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / "mvtwin_surface_mesh_test";
   fs::create_directories(d);
   return d / name;
@@ -30,7 +30,7 @@ TriangleMesh tetra_surface() {  // a closed tetrahedron's surface, 4 vertices, 4
 TEST(SurfaceMesh, EveryFormatRoundTrips) {
   const TriangleMesh m = tetra_surface();
   for (const char* name : {"t.stl", "t.ply", "t.vtk", "t.vtp", "t_raw.vtp"}) {
-    const fs::path p = temp(name);
+    const fs::path p = mesh_temp(name);
     write_surface_mesh(p, m, "LPS", std::string(name) != "t_raw.vtp");
     const SurfaceFile r = read_surface_mesh(p);
     EXPECT_EQ(r.space, "LPS") << name;
@@ -47,22 +47,22 @@ TEST(SurfaceMesh, HandWrittenFiles) {
   auto write = [](const fs::path& p, const std::string& t) {
     std::ofstream(p, std::ios::binary) << t;
   };
-  write(temp("a.stl"),
+  write(mesh_temp("a.stl"),
         "solid SPACE=RAS\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   "
         "vertex 0 1 0\n"
         "  endloop\n endfacet\n facet normal 0 0 1\n  outer loop\n   vertex 1 0 0\n   vertex 1 1 "
         "0\n   vertex 0 1 0\n"
         "  endloop\n endfacet\nendsolid\n");
-  SurfaceFile s = read_surface_mesh(temp("a.stl"));
+  SurfaceFile s = read_surface_mesh(mesh_temp("a.stl"));
   EXPECT_EQ(s.space, "RAS");
   EXPECT_EQ(s.mesh.V.rows(), 4);
   EXPECT_EQ(s.mesh.F.rows(), 2);
   // VTK 5.1's layout (OFFSETS / CONNECTIVITY), a quad fanned into two triangles.
-  write(temp("q.vtk"),
+  write(mesh_temp("q.vtk"),
         "# vtk DataFile Version 5.1\nquad\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 "
         "1 0 0 1 0\n"
         "POLYGONS 2 4\nOFFSETS vtktypeint64\n0 4\nCONNECTIVITY vtktypeint64\n0 1 2 3\n");
-  s = read_surface_mesh(temp("q.vtk"));
+  s = read_surface_mesh(mesh_temp("q.vtk"));
   EXPECT_EQ(s.mesh.F.rows(), 2);
   EXPECT_EQ(s.space, "");
   // Binary little-endian PLY with an extra vertex property and a uint8/int32 face list.
@@ -80,8 +80,8 @@ TEST(SurfaceMesh, HandWrittenFiles) {
     t += '\x03';
     const int f[3] = {0, 1, 2};
     t.append(reinterpret_cast<const char*>(f), 12);
-    write(temp("b.ply"), t);
-    s = read_surface_mesh(temp("b.ply"));
+    write(mesh_temp("b.ply"), t);
+    s = read_surface_mesh(mesh_temp("b.ply"));
     EXPECT_EQ(s.space, "LPS");
     EXPECT_EQ(s.mesh.V(2, 1), 3.0);
   }
@@ -89,7 +89,7 @@ TEST(SurfaceMesh, HandWrittenFiles) {
 
 TEST(SurfaceMesh, BadFilesAreNamed) {
   auto expect = [](const std::string& name, const std::string& text, const std::string& part) {
-    const fs::path p = temp(name);
+    const fs::path p = mesh_temp(name);
     std::ofstream(p, std::ios::binary) << text;
     try {
       read_surface_mesh(p);
@@ -157,7 +157,7 @@ TEST(SurfaceMesh, BadFilesAreNamed) {
          "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">-5.5e8</DataArray>"
          "</Polys></Piece></PolyData></VTKFile>",
          "not a whole number");
-  EXPECT_THROW(read_surface_mesh(temp("missing.stl")), Error);
+  EXPECT_THROW(read_surface_mesh(mesh_temp("missing.stl")), Error);
 }
 
 }  // namespace

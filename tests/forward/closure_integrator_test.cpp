@@ -20,7 +20,7 @@
 namespace mvtwin::forward {
 namespace {
 
-ClosureOptions small_options() {
+ClosureOptions small_integrator_options() {
   ClosureOptions o;
   o.model.ures = 10;
   o.model.vres = 6;
@@ -105,7 +105,7 @@ class StepSystem : public ::testing::Test {
  protected:
   void SetUp() override {
     patient_ = make_virtual_patient(1);
-    options_ = small_options();
+    options_ = small_integrator_options();
     scene_.emplace(make_closure_scene(patient_.sequence, patient_.truth->parameters, options_));
     states_ = closure_states(*scene_, options_, {0.0, 0.5, 1.0});
     ASSERT_EQ(states_.size(), 3u);
@@ -232,7 +232,7 @@ TEST(ClosureTimeStep, ErrorFallsAtTheSchemesOrder) {
       << "four full closures take minutes under AddressSanitizer; run in the -Werror build";
 #endif
   const Patient p = make_virtual_patient(1);
-  ClosureOptions o = small_options();
+  ClosureOptions o = small_integrator_options();
   o.solver.pcg_tolerance = 1e-10;  // the scheme's error, not the linear solver's
   o.stretch = 10.0;                // the paper's
   // Without friction: lagged Coulomb friction makes the closed state depend on the path (the
@@ -283,22 +283,22 @@ TEST(Outcome, NamesRoundTrip) {
 
 TEST(ClosureIntegratorApi, InvalidOptionsAndInitialVelocityAreRefused) {
   const Patient p = make_virtual_patient(2);
-  ClosureOptions o = small_options();
+  ClosureOptions o = small_integrator_options();
   const ClosureScene scene = make_closure_scene(p.sequence, p.truth->parameters, o);
   std::string why;
   EXPECT_TRUE(ClosureOptions{}.is_valid(&why)) << why;  // one set of defaults, all valid
   o.dt = -1;
   EXPECT_THROW(ClosureIntegrator(scene, o), Error);
   // The nested options are validated with the closure's.
-  o = small_options();
+  o = small_integrator_options();
   o.contact.alarm_mm = 0.1;  // below the contact distance
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("contact"), std::string::npos) << why;
-  o = small_options();
+  o = small_integrator_options();
   o.solver.pcg_max_iterations = 0;
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("pcg_max_iterations"), std::string::npos) << why;
-  o = small_options();
+  o = small_integrator_options();
   o.initial_velocity = Eigen::VectorXd::Zero(7);
   ClosureIntegrator it(scene, o);
   EXPECT_THROW(it.initial_state(), Error);

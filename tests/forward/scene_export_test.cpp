@@ -44,7 +44,7 @@ double evaluate(const std::vector<std::pair<double, double>>& c, double x) {
 }
 
 // Virtual patient 21 on a 12 x 6 model, optionally with a clip.
-ClosureOptions small_options(bool clip = false) {
+ClosureOptions small_export_options(bool clip = false) {
   ClosureOptions o;
   o.model.ures = 12;
   o.model.vres = 6;
@@ -53,7 +53,7 @@ ClosureOptions small_options(bool clip = false) {
 }
 ClosureScene small_scene(bool clip = false) {
   const Patient p = make_virtual_patient(21);
-  return make_closure_scene(p.sequence, p.truth->parameters, small_options(clip));
+  return make_closure_scene(p.sequence, p.truth->parameters, small_export_options(clip));
 }
 
 // The exported spring curve reproduces the chorda law: at any elongation the force is A0 sigma
@@ -116,7 +116,7 @@ Eigen::Matrix3d nhti_stress(const Eigen::Matrix3d& F, double ep, double ez, doub
 // monotonically to stretch 0.1, where St Venant-Kirchhoff's falls back towards zero below a
 // stretch of 1/sqrt(3).
 TEST(FebioExport, LeafletLawLinearizesToMvtwinsAndStiffensInCompression) {
-  const ClosureOptions o = small_options();
+  const ClosureOptions o = small_export_options();
   const ClosureScene scene = small_scene();
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_law_" + std::to_string(::getpid()));
   fs::remove_all(dir);
@@ -175,7 +175,7 @@ TEST(FebioExport, LeafletLawLinearizesToMvtwinsAndStiffensInCompression) {
 // end node and clip, load curves numbered 1..n and all referenced ones defined); the pressure
 // profile and tips in boundary.csv are the scene's.
 TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
-  const ClosureOptions o = small_options(true);
+  const ClosureOptions o = small_export_options(true);
   const ClosureScene scene = small_scene(true);
   const fs::path dir = fs::temp_directory_path() / ("mvtwin_scene_" + std::to_string(::getpid()));
   fs::remove_all(dir);

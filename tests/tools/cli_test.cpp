@@ -563,6 +563,10 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
 }
 
 TEST_F(Cli, QuickConvergenceAndRobustnessStudiesPrintTheirTables) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "the studies themselves run under AddressSanitizer in tests/studies; what this "
+                  "adds (the printed table) the test flavour checks (59 s under ASan)";
+#endif
   CmdResult r = run("study convergence --quick --out " + path("v"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("(reference)"), std::string::npos) << r.out;
@@ -576,6 +580,10 @@ TEST_F(Cli, QuickConvergenceAndRobustnessStudiesPrintTheirTables) {
 }
 
 TEST_F(Cli, QuickCohortStudyPrintsItsTableNextToThePaper) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "the cohort study runs under AddressSanitizer in tests/studies; what this adds "
+                  "(the printed table) the test flavour checks (50 s under ASan)";
+#endif
   const CmdResult r = run("study cohort --quick --patients 2 --out " + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("paper (25 patients)"), std::string::npos) << r.out;
