@@ -18,7 +18,7 @@ option(MVTWIN_PCH "Precompile the heavy third-party headers (faster builds)" ON)
 # release flavour builds file by file and catches those. It refuses two private helpers of one
 # name in a library; the ones it found were copies, now written once (core/stopwatch.h,
 # core/nan.h, raw::trim, raw::format_number).
-# (The test programs and fuzz harnesses are one file each: nothing to batch.)
+# The test programs batch their files the same way (tests/CMakeLists.txt).
 option(MVTWIN_UNITY "Compile each library's files a few to a translation unit" ON)
 set(MVTWIN_UNITY_BATCH 8 CACHE STRING "Files per unity translation unit")
 

@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
-#include <limits>
 
 #include "hdf5_io.h"
 #include "mvtwin/core/atomic_file.h"
