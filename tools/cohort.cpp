@@ -26,6 +26,8 @@ int run_cohort(const CohortArgs& a) {
   manifest.update(provenance(a.command_line));
   manifest["seed"] = a.seed;
   manifest["n"] = a.n;
+  manifest["taut_chordae_lengths"] = a.patient.taut_chordae_lengths;
+  manifest["commissure_clearance_mm"] = a.patient.commissure_clearance_mm;
   manifest["patients"] = nlohmann::json::array();
   int made = 0, kept = 0, failed = 0;
   for (int i = 0; i < a.n; ++i) {
@@ -39,8 +41,16 @@ int run_cohort(const CohortArgs& a) {
       if (fs::exists(path)) {
         try {
           const Patient old = read_patient(path, false);
-          reuse = old.provenance.seed == s && old.sequence.ures == a.patient.ures &&
-                  old.sequence.vres == a.patient.vres;
+          double clearance = 0.0;
+          if (old.truth) {
+            for (const auto& [quantity, v] : old.truth->anatomy)
+              if (quantity == "commissure_clearance_ed_mm") clearance = v;
+          }
+          reuse =
+              old.provenance.seed == s && old.sequence.ures == a.patient.ures &&
+              old.sequence.vres == a.patient.vres &&
+              old.sequence.marginal_chordae_lengths.empty() == !a.patient.taut_chordae_lengths &&
+              clearance == a.patient.commissure_clearance_mm;
         } catch (const Error&) {
           reuse = false;  // damaged or foreign file: make it again
         }
@@ -99,6 +109,7 @@ void register_cohort(CLI::App& app, Context& ctx) {
   cmd->add_option("--seed", a->seed, "cohort seed")->default_val(1);
   cmd->add_option("--out", a->out, "output directory")->required();
   add_grid_options(cmd, a->patient.ures, a->patient.vres);
+  add_closing_anatomy_options(cmd, a->patient);
   run_on_parse(cmd, ctx, a, run_cohort);
 }
 

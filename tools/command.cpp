@@ -44,4 +44,15 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
   cmd->add_option("--vres", vres, "grid points from annulus to free edge (>= 3)")->default_val(30);
 }
 
+void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o) {
+  cmd->add_flag("--taut-chordae", o.taut_chordae_lengths,
+                "experimental: record each marginal chorda's length, taut in the estimated "
+                "closed valve (docs/virtual-patients.md, \"Closing anatomy\")");
+  cmd->add_option("--commissure-clearance", o.commissure_clearance_mm,
+                  "experimental: close the commissures at end-diastole until facing columns are "
+                  "this far apart, mm (0: vertical, as in early diastole)")
+      ->default_val(0.0)
+      ->check(CLI::Range(0.0, 10.0));
+}
+
 }  // namespace mvtwin::tools

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mvtwin/core/patient.h"
+#include "mvtwin/core/virtual_patient.h"
 
 namespace mvtwin::tools {
 
@@ -61,5 +62,7 @@ void refuse_overwrite(const std::filesystem::path& path, bool force);
 
 /// The (u, v) grid resolution options shared by the commands that make a valve.
 void add_grid_options(CLI::App* cmd, int& ures, int& vres);
+/// --taut-chordae and --commissure-clearance (VirtualPatientOptions, experimental).
+void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o);
 
 }  // namespace mvtwin::tools

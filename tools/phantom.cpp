@@ -66,6 +66,7 @@ void register_phantom(CLI::App& app, Context& ctx) {
                   "normal | prolapse_elongated_chordae | prolapse_ruptured_chordae | "
                   "functional_mr | stiff_leaflets (default: drawn)");
   add_grid_options(cmd, a->patient.ures, a->patient.vres);
+  add_closing_anatomy_options(cmd, a->patient);
   cmd->add_flag("--force", a->force, "replace an existing file");
   cmd->add_flag("--simulate-closure", a->simulate_closure,
                 "fill the closing frames by a fine simulation with the hidden parameters");

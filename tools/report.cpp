@@ -124,6 +124,16 @@ void print_patient(const Patient& p, std::ostream& os) {
                               : "both")
        << " leaflet)\n";
   }
+  if (!s.marginal_chordae_lengths.empty()) {
+    double lo = 1e9, hi = 0.0;
+    for (const ChordaLength& c : s.marginal_chordae_lengths) {
+      lo = std::min(lo, c.length_mm);
+      hi = std::max(hi, c.length_mm);
+    }
+    os << "chordae   marginal lengths given at " << s.marginal_chordae_lengths.size() << " sites, "
+       << fixed(lo, 1) << "-" << fixed(hi, 1)
+       << " mm (the model's marginal rest lengths start from them)\n";
+  }
   if (s.end_diastole < 0 && s.first_closed < 0) frame_report(0, "frame 0");
   if (!p.images.empty()) {
     const auto& im = p.images.front();

@@ -97,6 +97,20 @@ void write_sequence(const h5::Location& root, const ValveSequence& seq) {
          std::string("torn marginal chordae: [s_begin, s_end) of their insertion sites around "
                      "the annulus (grid coordinate s from the anterolateral commissure)"),
          "ruptured_chordae");
+  if (!seq.marginal_chordae_lengths.empty()) {
+    std::vector<double> lengths;
+    for (const ChordaLength& c : seq.marginal_chordae_lengths) {
+      lengths.push_back(c.s);
+      lengths.push_back(c.length_mm);
+    }
+    g.write("marginal_chordae_lengths", lengths,
+            {static_cast<hsize_t>(seq.marginal_chordae_lengths.size()), 2});
+    g.attr("description",
+           std::string("marginal chordae lengths: (s, mm) per insertion site, s the grid "
+                       "coordinate from the anterolateral commissure; the model's marginal rest "
+                       "lengths start from them instead of the end-diastolic distances"),
+           "marginal_chordae_lengths");
+  }
 }
 
 ValveSequence read_sequence(const h5::Location& root) {
@@ -163,6 +177,11 @@ ValveSequence read_sequence(const h5::Location& root) {
   if (g.exists("ruptured_chordae")) {
     const auto r = g.read_doubles("ruptured_chordae", &d, {-1, 2}, "(k, 2)");
     for (size_t i = 0; i + 1 < r.size(); i += 2) seq.ruptured_chordae.push_back({r[i], r[i + 1]});
+  }
+  if (g.exists("marginal_chordae_lengths")) {
+    const auto r = g.read_doubles("marginal_chordae_lengths", &d, {-1, 2}, "(k, 2)");
+    for (size_t i = 0; i + 1 < r.size(); i += 2)
+      seq.marginal_chordae_lengths.push_back({r[i], r[i + 1]});
   }
   seq.validate((g.file() + ": /sequence").c_str());
   return seq;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "mvtwin/core/error.h"
@@ -31,6 +32,35 @@ ChordaeRupture marginal_chorda_rupture(int k, int n) {
   return {std::max(0.0, (k - 0.5) / n), std::min(1.0, (k + 0.5) / n)};
 }
 
+double ValveSequence::marginal_chorda_length_at(double s) const {
+  const std::vector<ChordaLength>& c = marginal_chordae_lengths;
+  if (c.empty()) return std::numeric_limits<double>::quiet_NaN();
+  if (c.size() == 1) return c.front().length_mm;
+  s -= std::floor(s);
+  // The first site at or after s; the segment before it wraps round the annulus.
+  const auto hi = std::lower_bound(c.begin(), c.end(), s,
+                                   [](const ChordaLength& a, double x) { return a.s < x; });
+  const ChordaLength& b = hi == c.end() ? c.front() : *hi;
+  const ChordaLength& a = hi == c.begin() ? c.back() : *(hi - 1);
+  double span = b.s - a.s, off = s - a.s;
+  if (span <= 0.0) span += 1.0;
+  if (off < 0.0) off += 1.0;
+  return a.length_mm + (b.length_mm - a.length_mm) * (off / span);
+}
+
+std::string ValveSequence::chordae_lengths_problem() const {
+  for (size_t i = 0; i < marginal_chordae_lengths.size(); ++i) {
+    const ChordaLength& c = marginal_chordae_lengths[i];
+    if (!(c.s >= 0.0 && c.s < 1.0) || (i > 0 && !(c.s > marginal_chordae_lengths[i - 1].s)))
+      return "marginal chordae lengths need sites increasing in [0, 1), got s = " +
+             std::to_string(c.s) + " at entry " + std::to_string(i);
+    if (!(c.length_mm > 0.0) || !std::isfinite(c.length_mm))
+      return "the marginal chorda length at s = " + std::to_string(c.s) +
+             " must be positive and finite, got " + std::to_string(c.length_mm) + " mm";
+  }
+  return "";
+}
+
 void ValveSequence::validate(const char* what) const {
   const std::string w(what);
   auto fail = [&](const std::string& msg) { throw Error(w + ": " + msg); };
@@ -42,6 +72,7 @@ void ValveSequence::validate(const char* what) const {
       fail("a chordae rupture must have 0 <= s_begin < s_end <= 1, got [" +
            std::to_string(r.s_begin) + ", " + std::to_string(r.s_end) + ")");
   }
+  if (const std::string problem = chordae_lengths_problem(); !problem.empty()) fail(problem);
   const int n = num_frames();
   if (end_diastole < -1 || end_diastole >= n) {
     fail("end_diastole index " + std::to_string(end_diastole) + " is outside 0.." +

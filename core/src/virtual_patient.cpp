@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -40,6 +41,8 @@ struct Draw {
   double al_length = 0, pl_length = 0, commissure_length = 0;
   double al_opening_ed = 0, pl_opening_ed = 0;
   double al_opening = 0, pl_opening = 0, bulge = 0, scallop_depth = 0;
+  // The commissures' angle below the annulus plane at end-diastole (set_commissure_opening_ed).
+  double commissure_opening_ed = 0;
   // The widest (early-diastolic) orifice the opening angles are set to: the free-edge loop
   // projected on the annulus plane, cm^2 (docs/virtual-patients.md, "Diastolic orifice").
   double orifice_target_cm2 = 0;
@@ -47,6 +50,9 @@ struct Draw {
   // papillary tips
   double papillary_depth = 0, papillary_separation = 0, papillary_posterior = 0;
   double papillary_asymmetry = 0, papillary_rise = 0;
+  // Where the tips stood before a functional-MR ventricle displaced them: the chordae keep the
+  // lengths they had there (tethering).
+  double papillary_depth_normal = 0, papillary_separation_normal = 0;
   // timing
   double heart_rate_bpm = 0;
   int frames = 0, closure_frames = 0;
@@ -102,6 +108,8 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
   d.papillary_posterior = rng.truncated_normal(-4.0, 2.0, -9.0, 1.0);
   d.papillary_asymmetry = rng.normal(0.0, 1.0);
   d.papillary_rise = rng.uniform(2.0, 5.0);
+  d.papillary_depth_normal = d.papillary_depth;
+  d.papillary_separation_normal = d.papillary_separation;
   // Timing: 7-28 frames per cycle, closure over 2-4 frames, ~0.2 s.
   d.heart_rate_bpm = rng.truncated_normal(72.0, 10.0, 55.0, 100.0);
   d.frames = rng.uniform_int(7, 28);
@@ -235,6 +243,9 @@ AnnulusShape annulus_shape(const Draw& d, double a) {
   return shape;
 }
 
+/// The commissures' angle below the annulus plane in early diastole: nearly vertical.
+constexpr double kCommissureOpeningWidest = 84.0 * kDeg;
+
 /// Open leaflet surface hanging from the annulus into the ventricle; `openness` 1 in early
 /// diastole (widest), 0 at end-diastole.
 LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double openness) {
@@ -255,7 +266,10 @@ LeafletGrid open_leaflets(const Draw& d, const Curve& annulus, int vres, double 
     const double phi_leaf = anterior
                                 ? d.al_opening_ed + (d.al_opening - d.al_opening_ed) * openness
                                 : d.pl_opening_ed + (d.pl_opening - d.pl_opening_ed) * openness;
-    const double phi_c = 84.0 * kDeg;  // commissures hang nearly vertically
+    // The commissures hang nearly vertically in early diastole and close with the leaflets
+    // towards end-diastole (set_commissure_opening_ed).
+    const double phi_c =
+        d.commissure_opening_ed + (kCommissureOpeningWidest - d.commissure_opening_ed) * openness;
     const double phi = std::min(phi_c + (phi_leaf - phi_c) * g, 88.0 * kDeg);
 
     const Eigen::Vector3d A = annulus.row(u).transpose();
@@ -315,6 +329,40 @@ void set_widest_openings(Draw& d, int ures, int vres) {
   apply(0.5 * (lo + hi));
 }
 
+/// Sets the commissures' end-diastolic angle: as far closed as the two leaflets beside them (the
+/// mean of their end-diastolic angles), or as much steeper as keeps the facing columns of the
+/// end-diastolic surface (u and ures - u, the same distance from a commissure) at least
+/// `clearance_mm` apart; hanging nearly vertically, as in early diastole, when it is 0. A
+/// commissure that still hangs vertically when the closure starts leaves a notch open beside it in
+/// the closed valve (docs/virtual-patients.md, "Closing anatomy").
+void set_commissure_opening_ed(Draw& d, int ures, int vres, double clearance_mm) {
+  d.commissure_opening_ed = kCommissureOpeningWidest;
+  if (!(clearance_mm > 0.0)) return;
+  std::vector<double> thetas;
+  const Curve annulus = sample_annulus(annulus_shape(d, 0.0), ures, &thetas);
+  auto clearance = [&](double angle) {
+    d.commissure_opening_ed = angle;
+    const LeafletGrid g = open_leaflets(d, annulus, vres, 0.0);
+    double gap = std::numeric_limits<double>::infinity();
+    for (int u = 1; u < ures / 2; ++u) {
+      for (int v = 1; v < vres; ++v) {
+        for (int w = 1; w < vres; ++w) gap = std::min(gap, (g.at(u, v) - g.at(ures - u, w)).norm());
+      }
+    }
+    return gap;
+  };
+  double lo = 0.5 * (d.al_opening_ed + d.pl_opening_ed), hi = kCommissureOpeningWidest;
+  if (lo >= hi || clearance(lo) >= clearance_mm) {
+    d.commissure_opening_ed = std::min(lo, hi);
+    return;
+  }
+  for (int it = 0; it < 30; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (clearance(mid) < clearance_mm ? lo : hi) = mid;
+  }
+  d.commissure_opening_ed = hi;
+}
+
 /// Rest-length factor per chordae group at which the chordae are just taut when the valve is
 /// closed, from a geometric estimate of the closed valve at the first closed frame: facing
 /// leaflet columns (fractions s and 1-s of the way round, i.e. the same distance from the
@@ -323,10 +371,24 @@ void set_widest_openings(Draw& d, int ures, int vres) {
 /// coaptation zone). Chordae sites follow Mansi et al. 2012, Sec. 2.2 (28 marginal on the free
 /// edge, 8 basal at mid-leaflet); a chorda belongs to the anterolateral papillary tip when s < 1/4
 /// or s >= 3/4. Everything in the valve frame.
-std::array<double, kNumChordaeGroups> closure_taut_restlength(
-    const LeafletGrid& ed, const Curve& annulus_closed, const Eigen::Vector3d& tip_al_ed,
-    const Eigen::Vector3d& tip_pm_ed, const Eigen::Vector3d& tip_al_closed,
-    const Eigen::Vector3d& tip_pm_closed) {
+///
+/// Also each marginal chorda's length (to the tips where the chordae grew, `tip_al_grown` and
+/// `tip_pm_grown`: the closed tips, or a functional-MR ventricle's tips before it displaced
+/// them), just taut in the same estimate but never shorter than at end-diastole: one factor per
+/// group cannot make the chordae of both leaflets taut at once (docs/virtual-patients.md,
+/// "Closing anatomy").
+struct TautChordae {
+  std::array<double, kNumChordaeGroups> factor{};
+  std::vector<ChordaLength> marginal;
+};
+
+TautChordae closure_taut_restlength(const LeafletGrid& ed, const Curve& annulus_closed,
+                                    const Eigen::Vector3d& tip_al_ed,
+                                    const Eigen::Vector3d& tip_pm_ed,
+                                    const Eigen::Vector3d& tip_al_closed,
+                                    const Eigen::Vector3d& tip_pm_closed,
+                                    const Eigen::Vector3d& tip_al_grown,
+                                    const Eigen::Vector3d& tip_pm_grown) {
   const int ures = ed.ures();
   const Curve dense = resample_closed_curve(annulus_closed, 16 * ures);
   auto annulus_at = [&](double s) -> Eigen::Vector3d {
@@ -335,6 +397,7 @@ std::array<double, kNumChordaeGroups> closure_taut_restlength(
   };
   const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
   std::array<double, kNumChordaeGroups> sum{}, count{};
+  TautChordae out;
   auto add = [&](double s, bool marginal) {
     const double partner = 1.0 - s;
     const double L = ed.radial_length_at(s), Lp = ed.radial_length_at(partner);
@@ -351,15 +414,19 @@ std::array<double, kNumChordaeGroups> closure_taut_restlength(
     const Eigen::Vector3d& t_cl = anterolateral ? tip_al_closed : tip_pm_closed;
     sum[g] += (closed - t_cl).norm() / (open - t_ed).norm();
     count[g] += 1.0;
+    // Never shorter than at end-diastole: chordae are at most just taut in diastole.
+    if (marginal)
+      out.marginal.push_back(
+          {s, std::max((closed - (anterolateral ? tip_al_grown : tip_pm_grown)).norm(),
+                       (open - t_ed).norm())});
   };
   for (int k = 0; k < 28; ++k) add(k / 28.0, true);
   for (int i = 0; i < 4; ++i) {
     add((2 * i + 1) / 8.0, false);
     add((2 * i + 1) / 8.0 + 1.0 / ures, false);
   }
-  std::array<double, kNumChordaeGroups> f{};
-  for (int g = 0; g < kNumChordaeGroups; ++g) f[g] = sum[g] / count[g];
-  return f;
+  for (int g = 0; g < kNumChordaeGroups; ++g) out.factor[g] = sum[g] / count[g];
+  return out;
 }
 
 Eigen::Matrix4d draw_pose(Rng& rng) {
@@ -385,6 +452,11 @@ bool VirtualPatientOptions::is_valid(std::string* error) const {
     *error = "vres must be at least 3 (got " + std::to_string(vres) + ")";
     return false;
   }
+  if (!(commissure_clearance_mm >= 0.0 && commissure_clearance_mm <= 10.0)) {
+    *error = "the commissures' end-diastolic clearance must be 0-10 mm (got " +
+             std::to_string(commissure_clearance_mm) + ")";
+    return false;
+  }
   return true;
 }
 
@@ -397,6 +469,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   const Eigen::Matrix4d pose = draw_pose(rng);
   const int ures = options.ures, vres = options.vres;
   set_widest_openings(d, ures, vres);
+  set_commissure_opening_ed(d, ures, vres, options.commissure_clearance_mm);
 
   // Phases: diastolic frames first; the closure takes `closure_frames` frames after
   // end-diastole; then systole.
@@ -431,7 +504,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   // Valve-frame copies for the rest-length estimate.
   std::optional<LeafletGrid> ed_surface_valve;
   Curve annulus_closed_valve;
-  Eigen::Vector3d tips_ed[2], tips_closed[2];
+  Eigen::Vector3d tips_ed[2], tips_closed[2], tips_grown[2];
 
   for (int f = 0; f < d.frames; ++f) {
     const double t = f * frame_dt;
@@ -462,11 +535,16 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     set(Landmark::kPosteriorAnnulusMidpoint, annulus_v.row(3 * ures / 4).transpose());
     set(Landmark::kAnterolateralCommissure, annulus_v.row(0).transpose());
     set(Landmark::kPosteromedialCommissure, annulus_v.row(ures / 2).transpose());
-    const double sep = 0.5 * d.papillary_separation * (1.0 - 0.05 * a);
-    const double pz = shape.z_shift - d.papillary_depth + d.papillary_rise * a;
-    const Eigen::Vector3d tip_al(d.papillary_posterior + 0.5 * d.papillary_asymmetry, sep, pz);
-    const Eigen::Vector3d tip_pm(d.papillary_posterior - 0.5 * d.papillary_asymmetry, -sep,
-                                 pz - 0.5 * d.papillary_asymmetry);
+    auto tip = [&](double separation, double depth, int side) -> Eigen::Vector3d {
+      const double sep = 0.5 * separation * (1.0 - 0.05 * a);
+      const double pz = shape.z_shift - depth + d.papillary_rise * a;
+      return side == 0
+                 ? Eigen::Vector3d(d.papillary_posterior + 0.5 * d.papillary_asymmetry, sep, pz)
+                 : Eigen::Vector3d(d.papillary_posterior - 0.5 * d.papillary_asymmetry, -sep,
+                                   pz - 0.5 * d.papillary_asymmetry);
+    };
+    const Eigen::Vector3d tip_al = tip(d.papillary_separation, d.papillary_depth, 0);
+    const Eigen::Vector3d tip_pm = tip(d.papillary_separation, d.papillary_depth, 1);
     set(Landmark::kAnterolateralPapillaryTip, tip_al);
     set(Landmark::kPosteromedialPapillaryTip, tip_pm);
     if (f == ed) {
@@ -476,6 +554,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     if (f == fc) {
       tips_closed[0] = tip_al;
       tips_closed[1] = tip_pm;
+      for (int side = 0; side < 2; ++side)
+        tips_grown[side] = tip(d.papillary_separation_normal, d.papillary_depth_normal, side);
       annulus_closed_valve = annulus_v;
     }
 
@@ -499,15 +579,22 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     seq.frames.push_back(std::move(fr));
   }
 
-  // Hidden rest-length factors: the factor at which each group is just taut in the estimated
-  // closed valve, times the patient's own variation and its pathology (elongation).
-  const std::array<double, kNumChordaeGroups> taut =
+  // Chordae: each marginal chorda as long as it is taut in the estimated closed valve (anatomy
+  // the sequence records, as the images would show it); the basal groups' factors where they are
+  // just taut there. Both times the patient's own variation and its pathology (elongation).
+  const TautChordae taut_chordae =
       closure_taut_restlength(*ed_surface_valve, annulus_closed_valve, tips_ed[0], tips_ed[1],
-                              tips_closed[0], tips_closed[1]);
+                              tips_closed[0], tips_closed[1], tips_grown[0], tips_grown[1]);
+  const std::array<double, kNumChordaeGroups>& taut = taut_chordae.factor;
+  if (options.taut_chordae_lengths) seq.marginal_chordae_lengths = taut_chordae.marginal;
   VirtualTruth truth;
   truth.pathology = pathology;
   truth.parameters = d.hidden;
-  for (int g = 0; g < kNumChordaeGroups; ++g) truth.parameters.restlength_factor[g] *= taut[g];
+  for (int g = 0; g < kNumChordaeGroups; ++g) {
+    const bool basal = g == static_cast<int>(ChordaeGroup::kAnterolateralBasal) ||
+                       g == static_cast<int>(ChordaeGroup::kPosteromedialBasal);
+    if (basal || !options.taut_chordae_lengths) truth.parameters.restlength_factor[g] *= taut[g];
+  }
   // Torn chordae are anatomy: one stretch over the adjacent marginal chordae of the default 28.
   if (!d.ruptured.empty()) {
     const ChordaeRupture first = marginal_chorda_rupture(d.ruptured.front(), 28);
@@ -537,6 +624,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       {"pl_opening_deg", d.pl_opening / kDeg},
       {"al_opening_ed_deg", d.al_opening_ed / kDeg},
       {"pl_opening_ed_deg", d.pl_opening_ed / kDeg},
+      {"commissure_opening_ed_deg", d.commissure_opening_ed / kDeg},
+      {"commissure_clearance_ed_mm", options.commissure_clearance_mm},
       {"leaflet_bulge", d.bulge},
       {"scallop_depth", d.scallop_depth},
       {"papillary_depth_mm", d.papillary_depth},

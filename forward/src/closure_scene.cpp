@@ -294,6 +294,8 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
     if (!r.is_valid())
       throw Error("closure simulation: a chordae rupture must have 0 <= s_begin < s_end <= 1");
   }
+  if (const std::string problem = seq.chordae_lengths_problem(); !problem.empty())
+    throw Error("closure simulation: " + problem);
   ClosureScene sc;
   // A device's grasp refined (ModelOptions::refine_factor): each band and the stress region
   // around it (kGraspStressMarginMm), as deep as the leaflet inserts plus that margin.
@@ -327,18 +329,21 @@ ClosureScene make_closure_scene(const ValveSequence& seq, const ValveParameters&
 
   // Chordae with their rest lengths and laws; the marginal chordae whose insertion site (k / n
   // of n evenly spaced ones) lies in a ruptured stretch of the anatomy are left out.
+  // Where the anatomy gives the marginal chordae's lengths, their rest lengths start from those.
   int marginal_index = 0;
   for (const ModelChorda& c : model.chordae) {
+    double base_length = c.ed_length;
     if (c.marginal) {
       const double site = static_cast<double>(marginal_index++) / opt.model.marginal_chordae;
       if (std::any_of(seq.ruptured_chordae.begin(), seq.ruptured_chordae.end(),
                       [site](const ChordaeRupture& r) { return r.contains(site); }))
         continue;
+      if (!seq.marginal_chordae_lengths.empty()) base_length = seq.marginal_chorda_length_at(site);
     }
     SceneChorda ch;
     ch.nodes = c.nodes;
     ch.tip = c.papillary;
-    ch.rest_length = c.ed_length * params.restlength_factor[static_cast<int>(c.group)];
+    ch.rest_length = base_length * params.restlength_factor[static_cast<int>(c.group)];
     ch.law = c.marginal ? ChordaLaw::marginal().stiffness_scaled(params.marginal_stiffness_scale)
                         : ChordaLaw::basal().stiffness_scaled(params.basal_stiffness_scale);
     ch.group = c.group;

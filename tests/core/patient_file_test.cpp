@@ -160,6 +160,58 @@ TEST_F(PatientFile, ChordaeRupturesAreAnatomyAndOlderFilesConvert) {
   }
 }
 
+// Marginal chordae lengths are anatomy on the sequence: recorded by the generator when asked, at
+// the 28 insertion sites of Mansi et al. (taut in its estimate of the closed valve), interpolated
+// linearly and periodically between sites, kept by the file, absent from older files (the model
+// then starts from the end-diastolic distances), and refused when malformed.
+TEST_F(PatientFile, MarginalChordaeLengthsAreAnatomyKeptByTheFile) {
+  EXPECT_TRUE(patient_.sequence.marginal_chordae_lengths.empty());  // not by default
+  VirtualPatientOptions vo;
+  vo.taut_chordae_lengths = true;
+  const Patient with = make_virtual_patient(11, vo);
+  const std::vector<ChordaLength>& made = with.sequence.marginal_chordae_lengths;
+  ASSERT_EQ(made.size(), 28u);
+  for (size_t k = 0; k < made.size(); ++k) {
+    EXPECT_NEAR(made[k].s, static_cast<double>(k) / 28, 1e-15);
+    EXPECT_GT(made[k].length_mm, 5.0);
+    EXPECT_LT(made[k].length_mm, 40.0);
+  }
+
+  ValveSequence seq = patient_.sequence;
+  seq.marginal_chordae_lengths = {{0.1, 10.0}, {0.5, 20.0}, {0.9, 14.0}};
+  EXPECT_NEAR(seq.marginal_chorda_length_at(0.1), 10.0, 1e-12);
+  EXPECT_NEAR(seq.marginal_chorda_length_at(0.3), 15.0, 1e-12);
+  EXPECT_NEAR(seq.marginal_chorda_length_at(0.7), 17.0, 1e-12);
+  EXPECT_NEAR(seq.marginal_chorda_length_at(0.0), 12.0, 1e-12);   // across s = 0 ...
+  EXPECT_NEAR(seq.marginal_chorda_length_at(0.95), 13.0, 1e-12);  // ... from 0.9 to 1.1
+  EXPECT_NEAR(seq.marginal_chorda_length_at(1.05), 11.0, 1e-12);  // periodic
+  seq.marginal_chordae_lengths.clear();
+  EXPECT_TRUE(std::isnan(seq.marginal_chorda_length_at(0.3)));
+
+  const fs::path f = dir_ / "lengths.h5";
+  write_patient(f, with);
+  const Patient q = read_patient(f);
+  ASSERT_EQ(q.sequence.marginal_chordae_lengths.size(), made.size());
+  for (size_t k = 0; k < made.size(); ++k) {
+    EXPECT_EQ(q.sequence.marginal_chordae_lengths[k].s, made[k].s);
+    EXPECT_EQ(q.sequence.marginal_chordae_lengths[k].length_mm, made[k].length_mm);
+  }
+
+  replace_dataset(f, "sequence/marginal_chordae_lengths", {}, {});
+  EXPECT_TRUE(read_patient(f).sequence.marginal_chordae_lengths.empty());
+
+  for (const std::vector<double>& bad :
+       {std::vector<double>{0.2, 12.0, 0.1, 13.0}, std::vector<double>{0.2, 0.0, 0.4, 13.0}}) {
+    replace_dataset(f, "sequence/marginal_chordae_lengths", bad, {2, 2});
+    try {
+      read_patient(f);
+      FAIL() << "malformed chordae lengths were accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("marginal chord"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST_F(PatientFile, DetectedSequenceIsKeptBesideTheStoredOne) {
   const fs::path p = dir_ / "d.h5";
   write_patient(p, patient_);

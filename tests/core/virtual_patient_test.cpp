@@ -1,5 +1,6 @@
 #include "mvtwin/core/virtual_patient.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
@@ -90,6 +91,73 @@ TEST(VirtualPatient, OpenValveCanClose) {
     EXPECT_LT(t.anterior_mm, -5.0);
     EXPECT_LT(t.posterior_mm, -5.0);
   }
+}
+
+// The experimental closing anatomy (docs/virtual-patients.md, "Closing anatomy"): the
+// commissures closed at end-diastole until the facing columns are the clearance apart (and no
+// closer), every marginal chorda's length recorded and never shorter than at end-diastole, the
+// hidden marginal factors only the patient's variation (the default generator's factors carry
+// the taut ratio, 1.1 on average); the same seed otherwise gives the same draw.
+TEST(VirtualPatient, ClosingAnatomyClosesTheCommissuresAndRecordsTheChordae) {
+  VirtualPatientOptions on;
+  on.taut_chordae_lengths = true;
+  on.commissure_clearance_mm = 1.0;
+  for (int seed = 100; seed < 130; ++seed) {
+    const Patient p = make_virtual_patient(seed, on);
+    const Patient plain = make_virtual_patient(seed);
+    EXPECT_TRUE(plain.sequence.marginal_chordae_lengths.empty());
+    EXPECT_EQ(p.truth->pathology, plain.truth->pathology);
+    const ValveSequence& s = p.sequence;
+    const LeafletGrid& g = *s.frames[s.end_diastole].la_surface;
+    const LeafletGrid& g0 = *plain.sequence.frames[s.end_diastole].la_surface;
+    const int U = g.ures();
+    double closest = 1e9, closest_plain = 1e9;
+    for (int u = 1; u < U / 2; ++u) {
+      for (int v = 1; v < g.vres(); ++v) {
+        for (int w = 1; w < g.vres(); ++w) {
+          closest = std::min(closest, (g.at(u, v) - g.at(U - u, w)).norm());
+          closest_plain = std::min(closest_plain, (g0.at(u, v) - g0.at(U - u, w)).norm());
+        }
+      }
+    }
+    EXPECT_GT(closest, 0.99) << "seed " << seed;
+    EXPECT_LT(closest, closest_plain) << "seed " << seed;  // closer than hanging vertically
+    // The annulus and the widest frame are the same patient's.
+    EXPECT_TRUE(s.frames[0].annulus.isApprox(plain.sequence.frames[0].annulus));
+    EXPECT_TRUE(
+        s.frames[0].la_surface->points().isApprox(plain.sequence.frames[0].la_surface->points()));
+
+    ASSERT_EQ(s.marginal_chordae_lengths.size(), 28u) << "seed " << seed;
+    const ValveFrame& ed = s.frames[s.end_diastole];
+    for (int k = 0; k < 28; ++k) {
+      const double su = k / 28.0;
+      const Landmark tip = su < 0.25 || su >= 0.75 ? Landmark::kAnterolateralPapillaryTip
+                                                   : Landmark::kPosteromedialPapillaryTip;
+      EXPECT_GE(s.marginal_chordae_lengths[k].length_mm,
+                (g.sample(su, 1.0) - ed.landmark(tip)).norm() - 1e-9)
+          << "seed " << seed << " chorda " << k;
+    }
+    const auto& f = p.truth->parameters.restlength_factor;
+    const auto& f0 = plain.truth->parameters.restlength_factor;
+    for (int grp : {0, 2}) {  // marginal: the variation (x elongation) only
+      const double elongation =
+          p.truth->pathology == Pathology::kProlapseElongatedChordae ? 1.5 : 1.1;
+      EXPECT_GE(f[grp], 0.9) << "seed " << seed;
+      EXPECT_LE(f[grp], elongation) << "seed " << seed;
+    }
+    // Basal: the taut factor in the (now end-diastole-dependent) estimate times the same
+    // variation as without the options.
+    auto taut = [](const Patient& q, int grp) {
+      for (const auto& [name, v] : q.truth->anatomy)
+        if (name == "restlength_taut_" + std::string(kChordaeGroupNames[grp])) return v;
+      return std::nan("");
+    };
+    for (int grp : {1, 3})
+      EXPECT_NEAR(f[grp] / taut(p, grp), f0[grp] / taut(plain, grp), 1e-12) << "seed " << seed;
+  }
+  VirtualPatientOptions bad;
+  bad.commissure_clearance_mm = -1;
+  EXPECT_THROW(make_virtual_patient(1, bad), Error);
 }
 
 struct Sample {

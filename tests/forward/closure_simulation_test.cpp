@@ -1,6 +1,7 @@
 #include "mvtwin/forward/closure_simulation.h"
 
 #include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <set>
 
@@ -506,6 +507,50 @@ TEST(ClosureScene, RupturedStretchLeavesOutTheMarginalChordaeInsertingInIt) {
   }
 }
 
+// Where the anatomy gives the marginal chordae's lengths, each marginal rest length is the length
+// at its insertion site (interpolated between the recorded sites) times its group's factor; the
+// basal chordae keep their end-diastolic lengths; without lengths, every chorda starts from its
+// end-diastolic distance, whatever the number of chordae.
+TEST(ClosureScene, MarginalRestLengthsStartFromTheAnatomysChordaeLengths) {
+  VirtualPatientOptions vo;
+  vo.taut_chordae_lengths = true;
+  Patient p = make_virtual_patient(35, vo);
+  ASSERT_EQ(p.sequence.marginal_chordae_lengths.size(), 28u);
+  Patient plain = p;
+  plain.sequence.marginal_chordae_lengths.clear();
+  ValveParameters par = p.truth->parameters;
+  par.restlength_factor = {1.1, 0.9, 1.2, 0.8};
+  for (int n : {28, 56}) {
+    ClosureOptions o = small_options();
+    o.model.ures = 16;
+    o.model.marginal_chordae = n;
+    const ClosureScene with = make_closure_scene(p.sequence, par, o);
+    const ClosureScene without = make_closure_scene(plain.sequence, par, o);
+    ASSERT_EQ(with.chordae.size(), without.chordae.size());
+    const ValveModel model = build_valve_model(p.sequence, o.model);
+    int k = 0;
+    for (size_t i = 0; i < with.chordae.size(); ++i) {
+      const SceneChorda& c = with.chordae[i];
+      const double factor = par.restlength_factor[static_cast<int>(c.group)];
+      EXPECT_NEAR(without.chordae[i].rest_length, model.chordae[i].ed_length * factor, 1e-12);
+      if (!c.marginal) {
+        EXPECT_NEAR(c.rest_length, model.chordae[i].ed_length * factor, 1e-12);
+        continue;
+      }
+      const double site = static_cast<double>(k++) / n;
+      const double expected = p.sequence.marginal_chorda_length_at(site) * factor;
+      EXPECT_NEAR(c.rest_length, expected, 1e-12) << n << " chordae, site " << site;
+      if (n == 28) {  // the recorded sites themselves: the recorded lengths
+        EXPECT_NEAR(
+            c.rest_length,
+            p.sequence.marginal_chordae_lengths[static_cast<size_t>(k - 1)].length_mm * factor,
+            1e-12);
+      }
+    }
+    EXPECT_EQ(k, n);
+  }
+}
+
 // One setter for options and one for parameters: each refuses the other's names (rather than
 // dropping them), and unknown names are named.
 TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
@@ -625,6 +670,15 @@ TEST(ClosureSimulation, InvalidOptionsAreNamed) {
   Patient torn = p;
   torn.sequence.ruptured_chordae = {{0.7, 0.6}};  // an empty, reversed stretch
   EXPECT_THROW(simulate_closure(torn.sequence, p.truth->parameters, small_options()), Error);
+  for (const std::vector<ChordaLength>& bad :
+       {std::vector<ChordaLength>{{0.1, 12.0}, {0.1, 13.0}},  // sites not increasing
+        std::vector<ChordaLength>{{0.1, 12.0}, {1.0, 13.0}},  // a site outside [0, 1)
+        std::vector<ChordaLength>{{0.1, -2.0}},               // a negative length
+        std::vector<ChordaLength>{{0.1, std::nan("")}}}) {
+    Patient q = p;
+    q.sequence.marginal_chordae_lengths = bad;
+    EXPECT_THROW(simulate_closure(q.sequence, p.truth->parameters, small_options()), Error);
+  }
   Patient q = p;
   q.sequence.first_closed = -1;
   EXPECT_THROW(simulate_closure(q.sequence, p.truth->parameters, small_options()), Error);

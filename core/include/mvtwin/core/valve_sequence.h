@@ -52,6 +52,16 @@ struct ChordaeRupture {
 /// [(k - 1/2) / n, (k + 1/2) / n), clipped to [0, 1].
 ChordaeRupture marginal_chorda_rupture(int k, int n);
 
+/// The length of the marginal chorda inserting at grid coordinate s (as for ChordaeRupture),
+/// from its insertion on the free edge to the papillary tip on its side: anatomy that the images
+/// can show (chordae are measured on 3D echo and CT, Kavitha et al. 2014). Where a sequence has
+/// them the model's marginal rest lengths start from them instead of the end-diastolic
+/// insertion-to-tip distance (docs/valve-model.md).
+struct ChordaLength {
+  double s = 0.0;          ///< insertion site, 0 <= s < 1
+  double length_mm = 0.0;  ///< > 0
+};
+
 struct ValveSequence {
   int ures = 0;
   int vres = 0;
@@ -62,6 +72,16 @@ struct ValveSequence {
   int first_closed = -1;
   /// Ruptured marginal chordae (none for most valves).
   std::vector<ChordaeRupture> ruptured_chordae;
+  /// Marginal chordae lengths (increasing s; none for most valves: the model then starts from
+  /// the end-diastolic distances, Mansi et al. 2012).
+  std::vector<ChordaLength> marginal_chordae_lengths;
+
+  /// The marginal chorda length at site s, interpolated linearly between the sites around the
+  /// (periodic) annulus; NaN when the sequence has none.
+  double marginal_chorda_length_at(double s) const;
+  /// What is wrong with the marginal chordae lengths (sites not increasing in [0, 1), a length
+  /// that is not positive and finite), "" when nothing.
+  std::string chordae_lengths_problem() const;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
   /// Names of the landmarks assumed (estimated from anatomy) in any frame, "" when none.
@@ -70,7 +90,8 @@ struct ValveSequence {
   /// Throws mvtwin::Error naming `what` and the first problem: inconsistent resolutions or
   /// shapes, non-finite coordinates, times not strictly increasing, phase indices out of
   /// range or out of order, observed landmarks that are NaN, an annulus that differs from the
-  /// v = 0 row of the surface, a rupture outside 0 <= s_begin < s_end <= 1.
+  /// v = 0 row of the surface, a rupture outside 0 <= s_begin < s_end <= 1, chordae lengths
+  /// that are not positive or whose sites are not increasing in [0, 1).
   void validate(const char* what) const;
 
   /// The same sequence on another (ures, vres) grid; correspondence is kept (the annulus is

@@ -18,6 +18,16 @@ struct VirtualPatientOptions {
   std::string id;
   /// Recorded as Provenance::command.
   std::string command = "mvtwin::make_virtual_patient";
+  /// Experimental (issue 39, normal valves that close; off by default until the suite's
+  /// patients are remade with it, docs/virtual-patients.md "Closing anatomy"):
+  /// record each marginal chorda's length (taut in the estimated closed valve, never shorter than
+  /// at end-diastole) as anatomy on the sequence; the hidden marginal rest-length factors are then
+  /// the patient's own variation and its pathology only.
+  bool taut_chordae_lengths = false;
+  /// Experimental, as above: > 0 closes the commissures at end-diastole as far as the leaflets
+  /// beside them while the facing columns stay this far apart (mm); 0 leaves them hanging
+  /// nearly vertically, as in early diastole.
+  double commissure_clearance_mm = 0.0;
 
   /// False with a reason in *error for impossible values.
   bool is_valid(std::string* error) const;

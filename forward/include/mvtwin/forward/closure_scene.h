@@ -20,7 +20,8 @@ struct ClosureOptions;
 struct SceneChorda {
   std::vector<int> nodes;
   int tip = 0;               ///< 0 anterolateral, 1 posteromedial
-  double rest_length = 0.0;  ///< mm (end-diastolic length x the group's factor)
+  double rest_length = 0.0;  ///< mm (end-diastolic length, or the anatomy's marginal chorda length,
+                             ///< x the group's factor)
   ChordaLaw law;
   ChordaeGroup group = ChordaeGroup::kAnterolateralMarginal;
   bool marginal = true;
