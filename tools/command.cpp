@@ -2,6 +2,7 @@
 #include "command.h"
 
 #include <iostream>
+#include <utility>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -21,10 +22,11 @@ Patient read_patient_for_run(const fs::path& path, bool use_detected) {
   if (use_detected) {
     if (!p.detected)
       throw Error(path.string() + " has no detected sequence (run mvtwin detect first)");
-    // Detection finds the leaflets, not torn chordae: those stay the patient's known anatomy.
-    const std::vector<ChordaeRupture> ruptures = p.sequence.ruptured_chordae;
-    p.sequence = *p.detected;
-    if (p.sequence.ruptured_chordae.empty()) p.sequence.ruptured_chordae = ruptures;
+    // Detection finds the leaflets, not the chordae: torn ones and their lengths stay the
+    // patient's known anatomy.
+    ValveSequence detected = *p.detected;
+    detected.keep_chordae_anatomy(p.sequence);
+    p.sequence = std::move(detected);
     p.provenance.source.append("; sequence detected from images (")
         .append(p.detected_by)
         .append(")");

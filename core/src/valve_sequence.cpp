@@ -48,6 +48,11 @@ double ValveSequence::marginal_chorda_length_at(double s) const {
   return a.length_mm + (b.length_mm - a.length_mm) * (off / span);
 }
 
+void ValveSequence::keep_chordae_anatomy(const ValveSequence& known) {
+  if (ruptured_chordae.empty()) ruptured_chordae = known.ruptured_chordae;
+  if (marginal_chordae_lengths.empty()) marginal_chordae_lengths = known.marginal_chordae_lengths;
+}
+
 std::string ValveSequence::chordae_lengths_problem() const {
   for (size_t i = 0; i < marginal_chordae_lengths.size(); ++i) {
     const ChordaLength& c = marginal_chordae_lengths[i];

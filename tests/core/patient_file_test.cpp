@@ -200,6 +200,22 @@ TEST_F(PatientFile, MarginalChordaeLengthsAreAnatomyKeptByTheFile) {
   replace_dataset(f, "sequence/marginal_chordae_lengths", {}, {});
   EXPECT_TRUE(read_patient(f).sequence.marginal_chordae_lengths.empty());
 
+  // A sequence detected from images keeps the known chordae (lengths and tears) unless it has
+  // its own.
+  ValveSequence detected = patient_.sequence;
+  detected.ruptured_chordae.clear();
+  ValveSequence known = with.sequence;
+  known.ruptured_chordae = {{0.6, 0.65}};
+  detected.keep_chordae_anatomy(known);
+  ASSERT_EQ(detected.marginal_chordae_lengths.size(), made.size());
+  EXPECT_EQ(detected.marginal_chordae_lengths[5].length_mm, made[5].length_mm);
+  ASSERT_EQ(detected.ruptured_chordae.size(), 1u);
+  EXPECT_EQ(detected.ruptured_chordae[0].s_begin, 0.6);
+  detected.marginal_chordae_lengths = {{0.5, 12.0}};
+  detected.keep_chordae_anatomy(known);
+  ASSERT_EQ(detected.marginal_chordae_lengths.size(), 1u);
+  EXPECT_EQ(detected.marginal_chordae_lengths[0].length_mm, 12.0);
+
   for (const std::vector<double>& bad :
        {std::vector<double>{0.2, 12.0, 0.1, 13.0}, std::vector<double>{0.2, 0.0, 0.4, 13.0}}) {
     replace_dataset(f, "sequence/marginal_chordae_lengths", bad, {2, 2});

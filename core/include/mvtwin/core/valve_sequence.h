@@ -94,6 +94,10 @@ struct ValveSequence {
   /// that are not positive or whose sites are not increasing in [0, 1).
   void validate(const char* what) const;
 
+  /// Copies the chordae anatomy that detection from images does not find (torn chordae, the
+  /// marginal chordae's lengths) from `known` where this sequence has none.
+  void keep_chordae_anatomy(const ValveSequence& known);
+
   /// The same sequence on another (ures, vres) grid; correspondence is kept (the annulus is
   /// resampled with the same periodic spline as the surface's v = 0 row).
   ValveSequence resampled(int ures, int vres) const;
