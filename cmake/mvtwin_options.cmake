@@ -10,6 +10,14 @@ endif()
 if(MVTWIN_SANITIZE)
   target_compile_options(mvtwin_options INTERFACE -fsanitize=address,undefined
                          -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  # Stack use after scope is checked only when asked (scripts/build asan-scope): poisoning and
+  # unpoisoning every small stack object (Eigen's fixed-size vectors and matrices) made the
+  # simulator's tests 2-3x slower under ASan (docs/testing.md). Heap, stack-buffer and global
+  # overflows, use after free and leaks are checked as before; the readers' fuzz harnesses
+  # (clang) keep the scope check.
+  if(NOT MVTWIN_SANITIZE_SCOPE)
+    target_compile_options(mvtwin_options INTERFACE -fno-sanitize-address-use-after-scope)
+  endif()
   target_link_options(mvtwin_options INTERFACE -fsanitize=address,undefined)
   # GCC documents false -Wmaybe-uninitialized positives under the sanitizers (seen in
   # libstdc++'s <regex> and Eigen at -O1): still printed, no longer fatal in this flavour.

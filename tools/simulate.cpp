@@ -57,7 +57,7 @@ void register_simulate(CLI::App& app, Context& ctx) {
       "Examples:\n  mvtwin simulate patient.h5 --out closed.h5 --vtk sim/\n"
       "  mvtwin simulate patient.h5 --out closed_dt.h5 --set dt=0.005 --set contact=off\n"
       "  mvtwin simulate patient.h5 --out closed_ref.h5 --solver cholmod-supernodal --set "
-      "pcg_tolerance=1e-8\n"
+      "pcg_tolerance=1e-8   # long: a reference\n"
       "  mvtwin simulate patient.h5 --out closed_at_peak.h5 --set settle_mm=0\n"
       "The third factorizes every step and solves the linear systems to 1e-8: a reference.\n"
       "The closed valve is the valve at rest under the peak pressure: after the closure the load\n"

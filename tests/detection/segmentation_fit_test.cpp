@@ -19,6 +19,8 @@
 #include "mvtwin/detection/patient_import.h"
 #include "mvtwin/forward/virtual_closure.h"
 
+#include "../support/small_models.h"
+
 namespace mvtwin::detection {
 namespace {
 
@@ -100,8 +102,8 @@ const Patient& closed_patient(std::uint64_t seed) {
     Patient q = make_virtual_patient(seed);
     forward::VirtualClosureOptions vo;
     vo.simulation = forward::ClosureOptions{};
-    vo.simulation.model.ures = 24;
-    vo.simulation.model.vres = 16;
+    vo.simulation.model.ures = test_support::small_models() ? 16 : 24;
+    vo.simulation.model.vres = test_support::small_models() ? 10 : 16;
     vo.simulation.dt = 0.01;
     vo.noise_mm = 0.0;
     forward::simulate_observed_closure(&q, vo);

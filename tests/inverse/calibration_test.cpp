@@ -85,23 +85,24 @@ TEST(ClosureObjective, CompareOfASimulationGivesEvaluatesDistances) {
   ClosureObjective obj(p, ParameterSpace("restlength", ValveParameters{}), small_model());
   const Eigen::VectorXd x = obj.space().start();
   const Evaluation a = obj.evaluate(x);
-  const Evaluation b = obj.compare(obj.simulate(x));
+  const forward::ClosureResult simulated = obj.simulate(x);
+  const Evaluation b = obj.compare(simulated);
   ASSERT_TRUE(a.ok) << a.reason;
   ASSERT_TRUE(b.ok) << b.reason;
   EXPECT_EQ(a.residuals.size(), b.residuals.size());
   EXPECT_EQ(a.residuals, b.residuals);  // simulations repeat bit for bit
   EXPECT_EQ(obj.simulations(), 1);      // compare is not counted
   // A failed simulation is a failed comparison, with its reason.
-  forward::ClosureResult failed = obj.simulate(x);
+  forward::ClosureResult failed = simulated;
   failed.summary.outcome = Outcome::kInvertedElement;
   failed.summary.reason = "inverted element 7";
   const Evaluation c = obj.compare(failed);
   EXPECT_FALSE(c.ok);
   EXPECT_EQ(c.reason, "inverted element 7");
   EXPECT_EQ(c.residuals.size(), 0);
-  // A simulation on another grid cannot be compared.
+  // A simulation on another (here coarser, so cheaper) grid cannot be compared.
   ObjectiveOptions other = small_model();
-  other.simulation.model.ures = 20;
+  other.simulation.model.ures = 12;
   ClosureObjective coarse(p, ParameterSpace("restlength", ValveParameters{}), other);
   EXPECT_FALSE(obj.compare(coarse.simulate(x)).ok);
 }

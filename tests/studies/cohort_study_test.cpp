@@ -19,6 +19,8 @@
 #include "mvtwin/studies/scaling.h"
 #include "mvtwin/studies/work_pool.h"
 
+#include "../support/small_models.h"
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace mvtwin;
@@ -40,6 +42,13 @@ class CohortStudy : public ::testing::Test {
     CohortStudyOptions o = CohortStudyOptions::quick();
     o.patients = n;
     o.out = dir_ / "study";
+    if (test_support::small_models()) {  // coarser observations and models
+      o.observation.simulation.model.ures = 14;
+      o.observation.simulation.model.vres = 8;
+      o.model.model.ures = 12;
+      o.model.model.vres = 6;
+      o.fit_model = o.model;
+    }
     return o;
   }
   static json read_json(const fs::path& p) {

@@ -14,6 +14,8 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/table_file.h"
 
+#include "../support/small_models.h"
+
 namespace fs = std::filesystem;
 using namespace mvtwin;
 using namespace mvtwin::studies;
@@ -30,6 +32,11 @@ class DetectionStudy : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   DetectionStudyOptions quick(const std::string& name) const {
     DetectionStudyOptions o = DetectionStudyOptions::quick();
+    if (test_support::small_models()) {  // coarser images, wider beams: cheaper to render
+      o.render.voxel_mm = 3.0;
+      o.render.axial_psf_mm = 0.8;
+      o.render.lateral_psf_mm = 3.0;
+    }
     o.out = dir_ / name;
     o.cache = dir_ / "cache";
     return o;
