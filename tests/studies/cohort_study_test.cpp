@@ -196,7 +196,7 @@ TEST_F(CohortStudy, CalibrationSearchesOnTheFitModelAndReportsOnTheStudyModel) {
   o.calibrate = true;
   o.fit = "pressure";  // one parameter: a short search
   o.max_simulations = 8;
-  o.fit_model.model.ures = 12;  // coarser than the reporting model (16 x 12)
+  o.fit_model.model.ures = 12;  // another grid than the reporting model's (16 x 12)
   o.fit_model.model.vres = 8;
   auto pool = make_local_pool();
   const CohortStudyResult r = run_cohort_study(o, *pool);
@@ -214,7 +214,9 @@ TEST_F(CohortStudy, CalibrationSearchesOnTheFitModelAndReportsOnTheStudyModel) {
   // the reporting model.
   EXPECT_NE(p.error_default_fit_model_mm, p.error_default_mm);
   EXPECT_NE(p.error_calibrated_fit_model_mm, p.error_calibrated_mm);
-  EXPECT_NE(p.refinement.find("on the 16 x 12 model"), std::string::npos) << p.refinement;
+  const std::string reporting = "on the " + std::to_string(o.model.model.ures) + " x " +
+                                std::to_string(o.model.model.vres) + " model";
+  EXPECT_NE(p.refinement.find(reporting), std::string::npos) << p.refinement;
   // What bench calibrate reported: the fit's SD and identifiability per parameter, its cost.
   ASSERT_TRUE(p.fitted.contains("peak_pressure")) << p.fitted.dump();
   EXPECT_TRUE(p.identified.contains("peak_pressure")) << p.identified.dump();
