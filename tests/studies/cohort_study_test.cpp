@@ -196,7 +196,7 @@ TEST_F(CohortStudy, CalibrationSearchesOnTheFitModelAndReportsOnTheStudyModel) {
   o.calibrate = true;
   o.fit = "pressure";  // one parameter: a short search
   o.max_simulations = 8;
-  o.fit_model.model.ures = 12;  // another grid than the reporting model's (16 x 12)
+  o.fit_model.model.ures = 12;  // another grid than the reporting model's (16 x 12; small: 12 x 6)
   o.fit_model.model.vres = 8;
   auto pool = make_local_pool();
   const CohortStudyResult r = run_cohort_study(o, *pool);

@@ -1,6 +1,6 @@
 #pragma once
-// Smaller models for the tests that simulate, render or train, where that work runs 10-20x
-// slower: under AddressSanitizer + UBSan (docs/testing.md). Those tests check code paths
+// Smaller models for the tests that simulate, render or train, where that work runs several
+// times slower: under AddressSanitizer + UBSan (docs/testing.md). Those tests check code paths
 // (resuming, refusing, writing, classifying), which do not depend on the grid, and the test
 // flavour runs them at their usual size. MVTWIN_TEST_SMALL=1 makes any build use the small
 // models (the way to see that they still pass the tests' assertions without waiting for a
