@@ -228,6 +228,9 @@ int run_bench_closure(const BenchClosureArgs& a) {
 }
 
 int run_bench_solvers(const BenchSolversArgs& a) {
+  for (const double t : a.tolerances)
+    if (!(t > 0 && t < 1))
+      throw Error("bench solvers: --tolerances must be in (0, 1), not " + std::to_string(t));
   const Patient p = make_virtual_patient(a.seed);
   const std::vector<std::string> ref_sets = reference_settings(a.ref_sets);
   const LeafletGrid ref =
@@ -241,7 +244,9 @@ int run_bench_solvers(const BenchSolversArgs& a) {
   json rows = json::array();
   std::cout << "solver                       tol     wall_s  solve_s  factorizations  "
                "pcg_iterations  error_mean_mm  error_max_mm\n";
-  for (const char* tol : {"0.1", "0.001"}) {
+  for (const double t : a.tolerances) {
+    char tol[32];
+    std::snprintf(tol, sizeof tol, "%g", t);
     for (const auto& v : variants) {
       std::vector<std::string> all = a.sets;
       all.insert(all.end(), v.begin(), v.end());
@@ -254,7 +259,7 @@ int run_bench_solvers(const BenchSolversArgs& a) {
               .symmetric;
       json row = summary_json(r);
       row["variant"] = v;
-      row["pcg_tolerance"] = std::stod(tol);
+      row["pcg_tolerance"] = t;
       row["pcg_iterations"] = s.pcg_iterations;
       row["factorize_s"] = s.factorize_s;
       row["error_mean_mm"] = e.mean;
@@ -290,7 +295,7 @@ void register_bench(CLI::App& app, Context& ctx) {
     cmd->footer(
         "Examples:\n"
         "  mvtwin bench closure --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
-        "--ref-set dt=0.005 --repeat 1 --json closure_small.json\n"
+        "--ref-set dt=0.005 --repeat 1 --json closure_small.json --ref-file ref_small.h5\n"
         "  mvtwin bench closure --json closure.json --ref-file closure_ref.h5   # long: the "
         "reference, once\n"
         "The timed run uses the paper's settings (ures = vres = 30, dt = 0.01 s) unless --set "
@@ -326,12 +331,13 @@ void register_bench(CLI::App& app, Context& ctx) {
     cmd->footer(
         "Examples:\n"
         "  mvtwin bench solvers --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
-        "--ref-set dt=0.005 --json solvers_small.json\n"
+        "--ref-set dt=0.005 --tolerances 0.1 --json solvers_small.json --ref-file ref_small.h5   "
+        "# the reference above, reused\n"
         "  mvtwin bench solvers --json solvers.json --ref-file closure_ref.h5   # long\n"
         "The default patient's closure at the paper's settings with each linear solver: a\n"
         "factorization every step (CHOLMOD supernodal, CHOLMOD simplicial, Eigen LDLT) and the\n"
         "reused factorization as a preconditioner (with and without the rotation of the\n"
-        "factor), each at linear tolerances 0.1 and 1e-3; error against the reference run.");
+        "factor), each at every --tolerances (linear); error against the reference run.");
     auto a = std::make_shared<BenchSolversArgs>();
     cmd->add_option("--json", a->json_path, "write the figures here");
     cmd->add_option("--set", a->sets, "name=value for every run (repeatable)");
@@ -339,6 +345,10 @@ void register_bench(CLI::App& app, Context& ctx) {
                     "name=value for the reference run, over its defaults (repeatable)")
         ->default_str(join(kReferenceSettings));
     cmd->add_option("--ref-file", a->ref_file, "reference simulation file to reuse or write");
+    cmd->add_option("--tolerances", a->tolerances,
+                    "linear-solve tolerances (relative residual), each run with every solver")
+        ->delimiter(',')
+        ->default_str("0.1,0.001");
     cmd->add_option("--seed", a->seed, "virtual patient")->default_val(1);
     run_on_parse(cmd, ctx, a, run_bench_solvers);
   }

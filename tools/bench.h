@@ -43,7 +43,8 @@ struct BenchSolversArgs : CommandArgs {
   std::string json_path;
   std::string ref_file;
   std::vector<std::string> sets;
-  std::vector<std::string> ref_sets;  ///< applied over kReferenceSettings
+  std::vector<std::string> ref_sets;             ///< applied over kReferenceSettings
+  std::vector<double> tolerances = {0.1, 1e-3};  ///< linear tolerances, each with every solver
   unsigned seed = 1;
 };
 

@@ -61,7 +61,9 @@ int run_train_detector(const TrainDetectorArgs& a) {
     std::string ids;
     for (const auto& id : r.patients) ids += (ids.empty() ? "" : ",") + id;
     std::ostringstream render;
-    render << "voxel_mm=" << a.render.voxel_mm << " probe_jitter_deg=" << a.render.probe_jitter_deg
+    render << "voxel_mm=" << a.render.voxel_mm << " axial_psf_mm=" << a.render.axial_psf_mm
+           << " lateral_psf_mm=" << a.render.lateral_psf_mm
+           << " probe_jitter_deg=" << a.render.probe_jitter_deg
            << " noise=" << json_list(a.train_noise) << " speckle=" << a.render.speckle
            << " dropout=" << a.render.dropout_fraction;
     r.detector.save(a.out, {{"mvtwin_version", std::string(kVersion)},
@@ -192,7 +194,8 @@ void register_detect(CLI::App& app, Context& ctx) {
     cmd->footer(
         "Examples:\n"
         "  mvtwin train-detector --virtual 3 --voxel 2.5 --trees 8 --samples 300 --truth-set "
-        "ures=16 --truth-set vres=8 --out detector.yml.gz   # a small one, to try\n"
+        "ures=16 --truth-set vres=8 --axial-psf 0.5 --lateral-psf 2.2 --out detector.yml.gz   # a "
+        "small one, to try\n"
         "  mvtwin train-detector --virtual 12 --out detector12.yml.gz --cache truths/   # long\n"
         "(or --cohort DIR: patient files with images, e.g. made by mvtwin render-tee)\n"
         "--cohort: every patient file in the directory with images (mvtwin render-tee) and a\n"
@@ -200,7 +203,7 @@ void register_detect(CLI::App& app, Context& ctx) {
         "training volume. --virtual N: N virtual patients (synthetic; seeds --cohort-seed x 1000 "
         "+\n"
         "1..N, pathologies in turn), their closing frames simulated and every frame rendered as\n"
-        "synthetic TEE (--voxel, --probe-jitter), --jobs at once.");
+        "synthetic TEE (--voxel, --axial-psf, --lateral-psf, --probe-jitter), --jobs at once.");
     auto a = std::make_shared<TrainDetectorArgs>();
     a->render.probe_jitter_deg = 10;  // a detector trained for any patient's view
     auto* cohort_opt =
@@ -213,6 +216,12 @@ void register_detect(CLI::App& app, Context& ctx) {
         ->default_val(3030);
     cmd->add_option("--voxel", a->render.voxel_mm, "with --virtual: voxel size, mm")
         ->default_val(a->render.voxel_mm);
+    cmd->add_option("--axial-psf", a->render.axial_psf_mm,
+                    "with --virtual: point-spread SD along the beam, mm (coarser renders faster)")
+        ->default_val(a->render.axial_psf_mm);
+    cmd->add_option("--lateral-psf", a->render.lateral_psf_mm,
+                    "with --virtual: point-spread SD across the beam at the probe depth, mm")
+        ->default_val(a->render.lateral_psf_mm);
     cmd->add_option("--probe-jitter", a->render.probe_jitter_deg,
                     "with --virtual: probe pose variation, degrees")
         ->default_val(a->render.probe_jitter_deg);

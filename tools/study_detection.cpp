@@ -33,6 +33,8 @@ int run_study_detection(const StudyDetectionArgs& args) {
   const auto& given_values = args.defaults;
   auto given = [&](const char* flag) { return args.given.count(flag) > 0; };
   if (given("--voxel")) o.render.voxel_mm = given_values.render.voxel_mm;
+  if (given("--axial-psf")) o.render.axial_psf_mm = given_values.render.axial_psf_mm;
+  if (given("--lateral-psf")) o.render.lateral_psf_mm = given_values.render.lateral_psf_mm;
   if (given("--probe-jitter")) o.render.probe_jitter_deg = given_values.render.probe_jitter_deg;
   if (given("--speckle")) o.render.speckle = given_values.render.speckle;
   if (given("--dropout")) o.render.dropout_fraction = given_values.render.dropout_fraction;
@@ -83,7 +85,8 @@ void register_study_detection(CLI::App* study, Context& ctx) {
       "  mvtwin study detection --out detection/   # long: about 25 min on 2 cores\n"
       "Two disjoint virtual cohorts of --seed (pathologies in turn): their closing frames are\n"
       "simulated without noise (--truth-set; the truth to detect) and every frame is rendered as\n"
-      "synthetic TEE (--voxel, --probe-jitter, --speckle, --dropout). A detector is trained on\n"
+      "synthetic TEE (--voxel, --*-psf, --probe-jitter, --speckle, --dropout). A detector is "
+      "trained on\n"
       "the first --train patients (renders cycling through --train-noise), or --model is used\n"
       "(refused if it saw a test patient), and run on the --test patients at each --noise-levels\n"
       "(the first is the headline). Writes OUT/study.json, study.h5 (one row per frame), PNG\n"
@@ -117,6 +120,11 @@ void register_study_detection(CLI::App* study, Context& ctx) {
                   "evaluate this detector (mvtwin train-detector) instead of training one")
       ->check(CLI::ExistingFile);
   cmd->add_option("--voxel", d.render.voxel_mm, "voxel size, mm")->default_val(d.render.voxel_mm);
+  cmd->add_option("--axial-psf", d.render.axial_psf_mm, "point-spread SD along the beam, mm")
+      ->default_val(d.render.axial_psf_mm);
+  cmd->add_option("--lateral-psf", d.render.lateral_psf_mm,
+                  "point-spread SD across the beam at the probe depth, mm")
+      ->default_val(d.render.lateral_psf_mm);
   cmd->add_option("--probe-jitter", d.render.probe_jitter_deg,
                   "probe pose variation between patients, degrees")
       ->default_val(d.render.probe_jitter_deg);

@@ -471,8 +471,9 @@ void write_outputs(const DetectionStudyOptions& o, const DetectionStudyResult& r
       ", pathologies in turn). Their closing frames were simulated without noise (the truth) by "
       "the model `" +
       std::to_string(truth.closure.simulation.model.ures) + " x " +
-      std::to_string(truth.closure.simulation.model.vres) +
-      "`, and every frame rendered as TEE: " + number(o.render.voxel_mm, 2) + " mm voxels, " +
+      std::to_string(truth.closure.simulation.model.vres) + "`, and every frame rendered as TEE: " +
+      number(o.render.voxel_mm, 2) + " mm voxels, PSF " + number(o.render.axial_psf_mm, 2) +
+      " mm axial and " + number(o.render.lateral_psf_mm, 2) + " mm lateral, " +
       number(o.render.sector_deg, 0) + " degree sector, probe pose varied by up to " +
       number(o.render.probe_jitter_deg, 0) + " degrees, speckle " + number(o.render.speckle, 2) +
       ", " + number(100 * o.render.dropout_fraction, 0) + " % of beams with a drop-out. " +
