@@ -228,9 +228,13 @@ int run_bench_closure(const BenchClosureArgs& a) {
 }
 
 int run_bench_solvers(const BenchSolversArgs& a) {
-  for (const double t : a.tolerances)
-    if (!(t > 0 && t < 1))
-      throw Error("bench solvers: --tolerances must be in (0, 1), not " + std::to_string(t));
+  for (const double t : a.tolerances) {
+    if (!(t > 0 && t < 1)) {
+      char given[32];
+      std::snprintf(given, sizeof given, "%g", t);
+      throw Error(std::string("bench solvers: --tolerances must be in (0, 1), not ") + given);
+    }
+  }
   const Patient p = make_virtual_patient(a.seed);
   const std::vector<std::string> ref_sets = reference_settings(a.ref_sets);
   const LeafletGrid ref =
