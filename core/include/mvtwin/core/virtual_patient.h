@@ -25,8 +25,10 @@ struct VirtualPatientOptions {
   /// the patient's own variation and its pathology only.
   bool taut_chordae_lengths = false;
   /// Experimental, as above: > 0 closes the commissures at end-diastole as far as the leaflets
-  /// beside them while the facing columns stay this far apart (mm); 0 leaves them hanging
-  /// nearly vertically, as in early diastole.
+  /// beside them while the surface stays this far (mm) from itself where it folds (the facing
+  /// columns, and around each commissure any two points 3/4 of a column apart along it, so that
+  /// the models' elements can follow the fold); 0 leaves them hanging nearly vertically, as in
+  /// early diastole.
   double commissure_clearance_mm = 0.0;
 
   /// False with a reason in *error for impossible values.
