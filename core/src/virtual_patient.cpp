@@ -357,9 +357,9 @@ void set_commissure_opening_ed(Draw& d, int ures, int vres, double clearance_mm)
     }
     // Around each commissure, within kBeside columns on either side and at quarter columns (the
     // surface between the grid's columns folds too; half columns left 3 of 75 patients with
-    // slivers at 40 x 40): points at least three quarters of a column
-    // apart along the surface keep the clearance in space. Folded tighter than that, the
-    // models' elements across the fold are slivers (quality 0.002 at 30 x 30).
+    // slivers at 40 x 40): points at least three quarters of a column apart along the surface
+    // keep the clearance in space. Folded tighter than that, the models' elements across the
+    // fold are slivers (quality 0.002 at 30 x 30).
     constexpr int kBeside = 4, kSub = 4;
     for (const double c : {0.0, 0.5}) {
       std::vector<Eigen::Vector3d> x;
