@@ -57,8 +57,26 @@ struct Draw {
   double heart_rate_bpm = 0;
   int frames = 0, closure_frames = 0;
   ValveParameters hidden;
+  // Torn marginal chordae (sites k of the default 28, k/28 along the free edge) as the default
+  // generator draws them: 1-3 adjacent ones on the posterior leaflet.
   std::vector<int> ruptured;
+  // The same two draws read as a flail scallop (flail_scallop_chordae): which scallop (0: P3,
+  // next to the posteromedial commissure, 1: P2, 2: P1) and how many of its chordae are torn.
+  int flail_scallop = 1, flail_chordae = 0;
 };
+
+/// A flail scallop: the marginal chordae of one posterior scallop torn (sites of the default 28,
+/// k/28 along the free edge; the posterior leaflet's 13 are 15-27, the scallops P3, P2, P1 a
+/// third of them each, centred at 16.3, 21 and 25.7), `count` adjacent ones centred on it.
+std::vector<int> flail_scallop_chordae(int scallop, int count) {
+  constexpr double kFirst = 14.0, kPerScallop = 14.0 / 3.0;  // the posterior arc: sites 14-28
+  const double centre = kFirst + (scallop + 0.5) * kPerScallop;
+  int first = static_cast<int>(std::lround(centre - 0.5 * (count - 1)));
+  first = std::clamp(first, 15, 28 - count);
+  std::vector<int> out;
+  for (int k = 0; k < count; ++k) out.push_back(first + k);
+  return out;
+}
 
 Pathology draw_pathology(Rng& rng) {
   // Cohort mix: mostly normal and functional MR, as in an MR clinic's referrals.
@@ -149,6 +167,12 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       const int n = rng.uniform_int(1, 3);
       const int first = rng.uniform_int(16, 26 - n);
       for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
+      // Read as a flail scallop (with chordae lengths as anatomy): 4-6 chordae; P2, the most
+      // common (Yuan 2009, Cardiol J 16:151), unless the draw stands at either end: P3 and P1 one in
+      // 8-10 draws each.
+      const int positions = 26 - n - 16 + 1, at = first - 16;
+      d.flail_scallop = at == 0 ? 0 : (at == positions - 1 ? 2 : 1);
+      d.flail_chordae = n + 3;
       break;
     }
     case Pathology::kFunctionalMr: {
@@ -635,6 +659,10 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     if (basal || !options.taut_chordae_lengths) truth.parameters.restlength_factor[g] *= taut[g];
   }
   // Torn chordae are anatomy: one stretch over the adjacent marginal chordae of the default 28.
+  // With chordae lengths as anatomy, a few torn chordae leave a segment that its neighbours still
+  // hold (docs/virtual-patients.md, "Flail scallops"): the flail is a scallop's chordae.
+  if (!d.ruptured.empty() && options.taut_chordae_lengths)
+    d.ruptured = flail_scallop_chordae(d.flail_scallop, d.flail_chordae);
   if (!d.ruptured.empty()) {
     const ChordaeRupture first = marginal_chorda_rupture(d.ruptured.front(), 28);
     const ChordaeRupture last = marginal_chorda_rupture(d.ruptured.back(), 28);

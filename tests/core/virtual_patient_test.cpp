@@ -160,6 +160,45 @@ TEST(VirtualPatient, ClosingAnatomyClosesTheCommissuresAndRecordsTheChordae) {
   EXPECT_THROW(make_virtual_patient(1, bad), Error);
 }
 
+// With chordae lengths as anatomy, a flail is one posterior scallop's chordae torn (4-6 of the
+// default 28, P2 the most common; docs/virtual-patients.md, "Flail scallops"); the default
+// generator keeps its 1-3 chordae. Sites are k/28 along the free edge: the posterior leaflet's are
+// 15-27, P3 next to the posteromedial commissure (s = 0.5), P1 next to the anterolateral one.
+TEST(VirtualPatient, AFlailWithChordaeLengthsIsAScallopsChordae) {
+  VirtualPatientOptions on, plain;
+  on.taut_chordae_lengths = true;
+  on.pathology = plain.pathology = Pathology::kProlapseRupturedChordae;
+  auto torn_sites = [](const Patient& p) {
+    std::vector<int> sites;
+    for (int k = 0; k < 28; ++k) {
+      for (const ChordaeRupture& r : p.sequence.ruptured_chordae)
+        if (r.contains(k / 28.0)) sites.push_back(k);
+    }
+    return sites;
+  };
+  int scallops[3] = {};
+  for (int seed = 0; seed < 40; ++seed) {
+    const Patient p = make_virtual_patient(seed, on), q = make_virtual_patient(seed, plain);
+    ASSERT_EQ(p.sequence.ruptured_chordae.size(), 1u) << "seed " << seed;
+    const std::vector<int> flail = torn_sites(p), few = torn_sites(q);
+    ASSERT_GE(flail.size(), 4u) << "seed " << seed;
+    ASSERT_LE(flail.size(), 6u) << "seed " << seed;
+    EXPECT_GE(few.size(), 1u) << "seed " << seed;
+    EXPECT_LE(few.size(), 3u) << "seed " << seed;
+    EXPECT_EQ(flail.back() - flail.front() + 1, static_cast<int>(flail.size())) << "adjacent";
+    EXPECT_GE(flail.front(), 15) << "seed " << seed;  // posterior, off the commissure
+    EXPECT_LE(flail.back(), 27) << "seed " << seed;
+    const double centre = 0.5 * (flail.front() + flail.back());
+    scallops[centre < 14 + 14.0 / 3 ? 0 : (centre < 14 + 28.0 / 3 ? 1 : 2)]++;
+    // The rest of the draw is the same patient's.
+    EXPECT_TRUE(p.sequence.frames[0].annulus.isApprox(q.sequence.frames[0].annulus));
+  }
+  EXPECT_GT(scallops[1], scallops[0] + scallops[2])
+      << "P2 the most common: P3 " << scallops[0] << ", P2 " << scallops[1] << ", P1 " << scallops[2];
+  EXPECT_GT(scallops[0], 0);
+  EXPECT_GT(scallops[2], 0);
+}
+
 struct Sample {
   std::vector<double> v;
   void add(double x) { v.push_back(x); }
