@@ -168,8 +168,8 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       const int first = rng.uniform_int(16, 26 - n);
       for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
       // Read as a flail scallop (with chordae lengths as anatomy): 4-6 chordae; P2, the most
-      // common (Yuan 2009, Cardiol J 16:151), unless the draw stands at either end: P3 and P1 one in
-      // 8-10 draws each.
+      // common (Yuan 2009, Cardiol J 16:151), unless the draw stands at either end: P3 and P1 one
+      // in 8-10 draws each.
       const int positions = 26 - n - 16 + 1, at = first - 16;
       d.flail_scallop = at == 0 ? 0 : (at == positions - 1 ? 2 : 1);
       d.flail_chordae = n + 3;

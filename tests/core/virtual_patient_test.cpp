@@ -194,7 +194,8 @@ TEST(VirtualPatient, AFlailWithChordaeLengthsIsAScallopsChordae) {
     EXPECT_TRUE(p.sequence.frames[0].annulus.isApprox(q.sequence.frames[0].annulus));
   }
   EXPECT_GT(scallops[1], scallops[0] + scallops[2])
-      << "P2 the most common: P3 " << scallops[0] << ", P2 " << scallops[1] << ", P1 " << scallops[2];
+      << "P2 the most common: P3 " << scallops[0] << ", P2 " << scallops[1] << ", P1 "
+      << scallops[2];
   EXPECT_GT(scallops[0], 0);
   EXPECT_GT(scallops[2], 0);
 }
