@@ -281,13 +281,20 @@ TEST(VirtualPatient, CohortStatisticsMatchPublishedRanges) {
         EXPECT_GE(target, 3.8) << "seed " << 1000 + i;
         EXPECT_LE(target, 4.9) << "seed " << 1000 + i;
         const double widest = orifice(p.sequence.frames[0]);
-        const double at_ed = orifice(ed);
-        // Reached, unless end-diastole is already wider than the target (then the widest frame
-        // is end-diastole's opening).
-        if (at_ed < target - 0.05) {
+        // Reached, unless the end-diastolic leaflet angles already open wider than the target:
+        // then the widest frame keeps them (its recorded angles are end-diastole's). Not judged
+        // by the end-diastolic frame's own loop, which commissures closed at end-diastole make
+        // smaller than the widest frame's (docs/virtual-patients.md, "Closing anatomy").
+        std::map<std::string, double> a;
+        for (const auto& [name, v] : p.truth->anatomy) a[name] = v;
+        const bool kept_ed_angles =
+            std::abs(a.at("al_opening_deg") - a.at("al_opening_ed_deg")) < 1e-9 &&
+            std::abs(a.at("pl_opening_deg") - a.at("pl_opening_ed_deg")) < 1e-9;
+        if (kept_ed_angles) {
+          EXPECT_GT(widest, target - 0.05) << "seed " << 1000 + i;
+        } else {
           EXPECT_NEAR(widest, target, 0.05) << "seed " << 1000 + i;
         }
-        EXPECT_LE(widest, std::max(target, at_ed) + 0.05) << "seed " << 1000 + i;
       }
     }
     const AnnulusPlane plane = annulus_plane(ed);
