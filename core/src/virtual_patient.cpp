@@ -57,17 +57,14 @@ struct Draw {
   double heart_rate_bpm = 0;
   int frames = 0, closure_frames = 0;
   ValveParameters hidden;
-  // Torn marginal chordae (sites k of the default 28, k/28 along the free edge) as the default
-  // generator draws them: 1-3 adjacent ones on the posterior leaflet.
+  // Torn marginal chordae: sites k of the default 28, k/28 along the free edge.
   std::vector<int> ruptured;
-  // The same two draws read as a flail scallop (flail_scallop_chordae): which scallop (0: P3,
-  // next to the posteromedial commissure, 1: P2, 2: P1) and how many of its chordae are torn.
-  int flail_scallop = 1, flail_chordae = 0;
 };
 
-/// A flail scallop: the marginal chordae of one posterior scallop torn (sites of the default 28,
-/// k/28 along the free edge; the posterior leaflet's 13 are 15-27, the scallops P3, P2, P1 a
-/// third of them each, centred at 16.3, 21 and 25.7), `count` adjacent ones centred on it.
+/// A flail scallop: `count` adjacent marginal chordae torn, centred on one posterior scallop (0:
+/// P3, next to the posteromedial commissure, 1: P2, 2: P1). Sites of the default 28, k/28 along
+/// the free edge: the posterior leaflet's 13 are 15-27, the scallops a third of them each, centred
+/// at 16.3, 21 and 25.7.
 std::vector<int> flail_scallop_chordae(int scallop, int count) {
   constexpr double kFirst = 14.0, kPerScallop = 14.0 / 3.0;  // the posterior arc: sites 14-28
   const double centre = kFirst + (scallop + 0.5) * kPerScallop;
@@ -88,7 +85,9 @@ Pathology draw_pathology(Rng& rng) {
   return Pathology::kStiffLeaflets;
 }
 
-Draw draw_anatomy(Rng& rng, Pathology pathology) {
+/// `flail_scallops`: a ruptured-chordae patient's torn chordae are one scallop's (with chordae
+/// lengths as anatomy, docs/virtual-patients.md "Flail scallops"), not 1-3 of them.
+Draw draw_anatomy(Rng& rng, Pathology pathology, bool flail_scallops) {
   Draw d;
   d.pathology = pathology;
   // Annulus at end-diastole (docs/virtual-patients.md: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
@@ -166,13 +165,15 @@ Draw draw_anatomy(Rng& rng, Pathology pathology) {
       // 1-3 adjacent marginal chordae torn, centred on the posterior scallops (P1-P3).
       const int n = rng.uniform_int(1, 3);
       const int first = rng.uniform_int(16, 26 - n);
-      for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
-      // Read as a flail scallop (with chordae lengths as anatomy): 4-6 chordae; P2, the most
-      // common (Yuan 2009, Cardiol J 16:151), unless the draw stands at either end: P3 and P1 one
-      // in 8-10 draws each.
+      if (!flail_scallops) {
+        for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
+        break;
+      }
+      // The same two draws read as a flail scallop (a few torn chordae leave a segment that its
+      // neighbours still hold): 4-6 chordae; P2, the most common (Yuan 2009, Cardiol J 16:151),
+      // unless the draw stands at either end: P3 and P1 one in 8-10 draws each.
       const int positions = 26 - n - 16 + 1, at = first - 16;
-      d.flail_scallop = at == 0 ? 0 : (at == positions - 1 ? 2 : 1);
-      d.flail_chordae = n + 3;
+      d.ruptured = flail_scallop_chordae(at == 0 ? 0 : (at == positions - 1 ? 2 : 1), n + 3);
       break;
     }
     case Pathology::kFunctionalMr: {
@@ -528,7 +529,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   if (!options.is_valid(&error)) throw Error("virtual patient: " + error);
   Rng rng(seed);
   const Pathology pathology = options.pathology ? *options.pathology : draw_pathology(rng);
-  Draw d = draw_anatomy(rng, pathology);
+  Draw d = draw_anatomy(rng, pathology, options.taut_chordae_lengths);
   const Eigen::Matrix4d pose = draw_pose(rng);
   const int ures = options.ures, vres = options.vres;
   set_widest_openings(d, ures, vres);
@@ -659,10 +660,6 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
     if (basal || !options.taut_chordae_lengths) truth.parameters.restlength_factor[g] *= taut[g];
   }
   // Torn chordae are anatomy: one stretch over the adjacent marginal chordae of the default 28.
-  // With chordae lengths as anatomy, a few torn chordae leave a segment that its neighbours still
-  // hold (docs/virtual-patients.md, "Flail scallops"): the flail is a scallop's chordae.
-  if (!d.ruptured.empty() && options.taut_chordae_lengths)
-    d.ruptured = flail_scallop_chordae(d.flail_scallop, d.flail_chordae);
   if (!d.ruptured.empty()) {
     const ChordaeRupture first = marginal_chorda_rupture(d.ruptured.front(), 28);
     const ChordaeRupture last = marginal_chorda_rupture(d.ruptured.back(), 28);
