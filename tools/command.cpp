@@ -47,13 +47,14 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres) {
 }
 
 void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o) {
-  cmd->add_flag("--taut-chordae", o.taut_chordae_lengths,
-                "experimental: record each marginal chorda's length, taut in the estimated "
-                "closed valve (docs/virtual-patients.md, \"Closing anatomy\")");
+  cmd->add_flag("--taut-chordae,!--no-taut-chordae", o.taut_chordae_lengths,
+                "record each marginal chorda's length, taut in the estimated closed valve (the "
+                "default; --no-taut-chordae: rest lengths from end-diastole times group factors, "
+                "the generator before the closing anatomy; docs/virtual-patients.md)");
   cmd->add_option("--commissure-clearance", o.commissure_clearance_mm,
-                  "experimental: close the commissures at end-diastole until facing columns are "
-                  "this far apart, mm (0: vertical, as in early diastole)")
-      ->default_val(0.0)
+                  "close the commissures at end-diastole until the folded surface is this far "
+                  "from itself, mm (0: hanging vertically, as before the closing anatomy)")
+      ->default_val(o.commissure_clearance_mm)
       ->check(CLI::Range(0.0, 10.0));
 }
 

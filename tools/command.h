@@ -62,7 +62,8 @@ void refuse_overwrite(const std::filesystem::path& path, bool force);
 
 /// The (u, v) grid resolution options shared by the commands that make a valve.
 void add_grid_options(CLI::App* cmd, int& ures, int& vres);
-/// --taut-chordae and --commissure-clearance (VirtualPatientOptions, experimental).
+/// --taut-chordae / --no-taut-chordae and --commissure-clearance (VirtualPatientOptions: the
+/// closing anatomy, on by default).
 void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o);
 
 }  // namespace mvtwin::tools

@@ -80,7 +80,8 @@ Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path
 
 std::filesystem::path observed_file(const std::filesystem::path& cache, const std::string& id,
                                     const forward::VirtualClosureOptions& observation) {
-  std::string description = "noise=" + std::to_string(observation.noise_mm);
+  std::string description = "patients=" + std::to_string(kVirtualPatientEdition) +
+                            " noise=" + std::to_string(observation.noise_mm);
   for (const auto& [k, v] : forward::describe_result_options(observation.simulation))
     description += " " + k + "=" + v;
   return cache / ("observed_" + id + "_" + cache_key(description) + ".h5");

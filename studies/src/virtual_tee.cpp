@@ -114,7 +114,7 @@ VirtualTeeTruth::VirtualTeeTruth(const std::vector<std::string>& sets) {
   for (const auto& a : sets)
     forward::apply_option(a, &closure.simulation,
                           "the truths are simulated with the virtual patients' hidden parameters");
-  std::string description = "truth";
+  std::string description = "truth patients=" + std::to_string(kVirtualPatientEdition);
   for (const auto& [name, value] : forward::describe_result_options(closure.simulation))
     description += " " + name + "=" + value;
   key = cache_key(description);

@@ -18,22 +18,35 @@ struct VirtualPatientOptions {
   std::string id;
   /// Recorded as Provenance::command.
   std::string command = "mvtwin::make_virtual_patient";
-  /// Experimental (issue 39, normal valves that close; off by default until the suite's
-  /// patients are remade with it, docs/virtual-patients.md "Closing anatomy"):
+  /// The closing anatomy (issue 39, docs/virtual-patients.md "Closing anatomy"), on by default:
   /// record each marginal chorda's length (taut in the estimated closed valve, never shorter than
   /// at end-diastole) as anatomy on the sequence; the hidden marginal rest-length factors are then
-  /// the patient's own variation and its pathology only.
-  bool taut_chordae_lengths = false;
-  /// Experimental, as above: > 0 closes the commissures at end-diastole as far as the leaflets
-  /// beside them while the surface stays this far (mm) from itself where it folds (the facing
-  /// columns, and around each commissure any two points 3/4 of a column apart along it, so that
-  /// the models' elements can follow the fold); 0 leaves them hanging nearly vertically, as in
-  /// early diastole.
-  double commissure_clearance_mm = 0.0;
+  /// the patient's own variation and its pathology only, and a flail is a scallop's chordae torn.
+  /// False: the generator before it (rest lengths from end-diastole times group factors, 1-3 torn
+  /// chordae).
+  bool taut_chordae_lengths = true;
+  /// > 0 closes the commissures at end-diastole as far as the leaflets beside them while the
+  /// surface stays this far (mm) from itself where it folds (the facing columns, and around each
+  /// commissure any two points 3/4 of a column apart along it, so that the models' elements can
+  /// follow the fold); 0 leaves them hanging nearly vertically, as in early diastole (the
+  /// generator before the closing anatomy).
+  double commissure_clearance_mm = 1.0;
+  /// The generator before the closing anatomy (both options above off).
+  static VirtualPatientOptions before_closing_anatomy() {
+    VirtualPatientOptions o;
+    o.taut_chordae_lengths = false;
+    o.commissure_clearance_mm = 0.0;
+    return o;
+  }
 
   /// False with a reason in *error for impossible values.
   bool is_valid(std::string* error) const;
 };
+
+/// The default generator's edition: raised whenever the default options draw different
+/// patients from the same seed (2: the closing anatomy became the default). Caches of anything
+/// computed from default virtual patients (observed closures) key on it.
+inline constexpr int kVirtualPatientEdition = 2;
 
 /// Generates a virtual (synthetic) patient from a seed: a saddle annulus that contracts and
 /// deepens from end-diastole to the first closed frame, open leaflets on the (u,v) grid,
