@@ -84,5 +84,47 @@ TEST(Diastole, TheOpenValveRestsOnItsWidestFrameAndAClipMakesTwoSmallerOrifices)
   EXPECT_GT(clipped.gradient_mmhg, open.gradient_mmhg);
 }
 
+
+TEST(Diastole, AClipsFootprintIsTheHullOfItsGraspedBandsSeenAlongTheAnnulusNormal) {
+  // Two bands of grasped nodes at different heights, the device between them: anterior nodes on
+  // y = 2, posterior on y = -1.5, spread over x in [-3, 3] (a 6 mm device), with interior points.
+  // Seen along a tilted annulus normal the footprint is the hull of their projections.
+  ClosureResult r;
+  std::vector<Eigen::Vector3d> p;
+  ClipGrasp g;
+  for (int k = 0; k <= 6; ++k) {
+    g.anterior_band.push_back(static_cast<int>(p.size()));
+    p.emplace_back(-3.0 + k, 2.0, 0.3 * k);
+    g.posterior_band.push_back(static_cast<int>(p.size()));
+    p.emplace_back(-3.0 + k, -1.5, -0.2 * k);
+    g.posterior_band.push_back(static_cast<int>(p.size()));
+    p.emplace_back(-3.0 + k, 0.5, 1.0);  // inside the hull
+  }
+  r.positions.resize(3 * static_cast<Eigen::Index>(p.size()));
+  for (size_t i = 0; i < p.size(); ++i) r.positions.segment<3>(3 * static_cast<Eigen::Index>(i)) = p[i];
+  r.clip_grasps.push_back(g);
+  r.clip_grasps.push_back(ClipGrasp{});  // the paper's spring: no band, no footprint
+  const double tilt = 0.4;
+  AnnulusPlane plane{Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d(0.0, std::sin(tilt), std::cos(tilt))};
+  const TriangleMesh f = clip_device_footprint(r, plane);
+  ASSERT_EQ(f.V.rows(), 4);  // the four corners; the points on the edges and inside drop out
+  ASSERT_EQ(f.F.rows(), 2);
+  // Projected area against the analytic one: in the plane the device's band is 6 mm along x,
+  // and across it 3.5 cos(tilt) at x = -3 and 3.5 cos(tilt) - (1.8 + 1.2) sin(tilt) at x = 3
+  // (the anterior band rises, the posterior sinks): a trapezoid.
+  const Eigen::Vector3d n = plane.normal;
+  double projected = 0;
+  for (Eigen::Index t = 0; t < f.F.rows(); ++t) {
+    const Eigen::Vector3d a = f.V.row(f.F(t, 0)), b = f.V.row(f.F(t, 1)), c = f.V.row(f.F(t, 2));
+    projected += 0.5 * std::abs((b - a).cross(c - a).dot(n));
+  }
+  EXPECT_NEAR(projected, 6.0 * (3.5 * std::cos(tilt) - 1.5 * std::sin(tilt)), 1e-9);
+  // No bands at all: nothing is covered.
+  ClosureResult none;
+  none.clip_grasps.push_back(ClipGrasp{});
+  EXPECT_EQ(clip_device_footprint(none, plane).F.rows(), 0);
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

@@ -2,6 +2,8 @@
 #include <string>
 #include <vector>
 
+#include "mvtwin/core/annulus_plane.h"
+#include "mvtwin/core/triangle_mesh.h"
 #include "mvtwin/core/valve_parameters.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/closure_simulation.h"
@@ -40,13 +42,21 @@ struct DiastolicOpening {
   int frame = -1;
   std::string fallback;
   /// Mitral valve area: the openings seen along the annulus normal (perpendicular to the
-  /// inflow), summed, cm^2; each opening largest first.
+  /// inflow), summed, cm^2; each opening largest first. A clip device and the tissue it holds
+  /// close what they cover (clip_device_footprint).
   double mva_cm2 = 0;
   std::vector<double> openings_cm2;
   double gradient_mmhg = 0;  ///< gorlin_mean_gradient_mmhg at the options' flow
   bool stenosis = false;
   ClosureResult result;  ///< the simulation (its last sample is the open valve)
 };
+
+/// What the clip devices of a result and the tissue they hold cover seen along `plane`'s normal:
+/// per device, the convex hull in the plane of both leaflets' grasped nodes at the end
+/// (ClipGrasp::anterior_band, posterior_band: the arms close the two bands on the device's body
+/// between them), as a fan of triangles through those nodes whose projection is that hull.
+/// Empty for clips without grasped bands (the paper's spring).
+TriangleMesh clip_device_footprint(const ClosureResult& result, const AnnulusPlane& plane);
 
 /// Simulates the valve open: the finite-element model built on the widest open frame up to
 /// end-diastole (the leaflets rest open in diastole), the annulus and papillary tips held there
