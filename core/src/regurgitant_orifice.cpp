@@ -102,7 +102,7 @@ struct Side {
 };
 
 Side measure_side(const LeafletGrid& g, const LeafletGrid* lv, bool anterior,
-                  const TriangleBvh& other, const std::vector<std::pair<double, double>>& blocked) {
+                  const TriangleBvh& other) {
   const int U = g.ures(), V = g.vres(), half = U / 2;
   Side s;
   s.anterior = anterior;
@@ -139,13 +139,6 @@ Side measure_side(const LeafletGrid& g, const LeafletGrid* lv, bool anterior,
         }
       }
     }
-    // A device's body fills the line here: sealed.
-    for (const auto& [b0, b1] : blocked) {
-      if (s.x[i] >= b0 && s.x[i] <= b1) {
-        best = 0.0;
-        best_hit.point = best_a;
-      }
-    }
     s.v_min.push_back(best_v);
     s.gap.push_back(best);
     s.a.push_back(best_a);
@@ -167,37 +160,55 @@ struct OpenPiece {
   double x0, x1, area, length, max_gap;
 };
 
-/// The open pieces of one side, merged where they touch.
-std::vector<OpenPiece> open_pieces(const LeafletGrid& g, const Side& s, double seal) {
+/// The open pieces of one side, merged where they touch. Where a piece reaches into a stretch a
+/// device fills (the seal crossing interpolated past the device's edge, or a device narrower
+/// than the column spacing), the stretch is cut out of it.
+std::vector<OpenPiece> open_pieces(const LeafletGrid& g, const Side& s, double seal,
+                                   const std::vector<std::pair<double, double>>& blocked) {
   std::vector<OpenPiece> out;
   for (size_t i = 0; i + 1 < s.gap.size(); ++i) {
     const double g0 = s.gap[i], g1 = s.gap[i + 1];
     if (g0 <= seal && g1 <= seal) continue;
     const double dl = spacing(g, s, static_cast<int>(i));
     const double x0 = s.x[i], x1 = s.x[i + 1];
-    OpenPiece p{x0, x1, 0, 0, std::max(g0, g1)};
-    if (g0 > seal && g1 > seal) {
-      p.area = 0.5 * (g0 + g1) * dl;
-      p.length = dl;
-    } else {
-      // The gap crosses the seal inside the segment (linear between the columns).
+    // The open stretch of the segment (the gap linear between the columns).
+    double a = x0, b = x1;
+    if (g0 <= seal || g1 <= seal) {
       const double hi = std::max(g0, g1), lo = std::min(g0, g1);
       const double f = (hi - seal) / (hi - lo);
-      p.area = 0.5 * (hi + seal) * f * dl;
-      p.length = f * dl;
       if (g0 > seal)
-        p.x1 = x0 + f * (x1 - x0);
+        b = x0 + f * (x1 - x0);
       else
-        p.x0 = x1 - f * (x1 - x0);
+        a = x1 - f * (x1 - x0);
     }
-    if (!out.empty() && out.back().x1 >= p.x0 - 1e-12) {
-      OpenPiece& q = out.back();
-      q.x1 = p.x1;
-      q.area += p.area;
-      q.length += p.length;
-      q.max_gap = std::max(q.max_gap, p.max_gap);
-    } else {
-      out.push_back(p);
+    std::vector<std::pair<double, double>> parts{{a, b}};
+    for (const auto& [c0, c1] : blocked) {
+      std::vector<std::pair<double, double>> kept;
+      for (const auto& [p0, p1] : parts) {
+        if (c1 <= p0 || c0 >= p1) {
+          kept.emplace_back(p0, p1);
+          continue;
+        }
+        if (c0 > p0) kept.emplace_back(p0, c0);
+        if (c1 < p1) kept.emplace_back(c1, p1);
+      }
+      parts = std::move(kept);
+    }
+    auto gap_at = [&](double x) { return g0 + (g1 - g0) * (x - x0) / (x1 - x0); };
+    for (const auto& [p0, p1] : parts) {
+      if (!(p1 > p0)) continue;
+      const double fr = (p1 - p0) / (x1 - x0);
+      OpenPiece p{p0, p1, 0.5 * (gap_at(p0) + gap_at(p1)) * fr * dl, fr * dl,
+                  std::max(gap_at(p0), gap_at(p1))};
+      if (!out.empty() && out.back().x1 >= p.x0 - 1e-12) {
+        OpenPiece& q = out.back();
+        q.x1 = p.x1;
+        q.area += p.area;
+        q.length += p.length;
+        q.max_gap = std::max(q.max_gap, p.max_gap);
+      } else {
+        out.push_back(p);
+      }
     }
   }
   return out;
@@ -223,8 +234,8 @@ RegurgitantOrifice measure_regurgitant_orifice(const LeafletGrid& g, const Orifi
     throw Error("regurgitant orifice: non-finite ventricular surface coordinates");
   const TriangleBvh anterior_bvh(leaflet_mesh(g, lv, true)),
       posterior_bvh(leaflet_mesh(g, lv, false));
-  const Side sides[2] = {measure_side(g, lv, true, posterior_bvh, opt.blocked),
-                         measure_side(g, lv, false, anterior_bvh, opt.blocked)};
+  const Side sides[2] = {measure_side(g, lv, true, posterior_bvh),
+                         measure_side(g, lv, false, anterior_bvh)};
   const double seal = opt.seal_mm;
 
   RegurgitantOrifice r;
@@ -238,7 +249,7 @@ RegurgitantOrifice measure_regurgitant_orifice(const LeafletGrid& g, const Orifi
   // count half (both leaflets see the same slit, from either side).
   std::vector<OpenPiece> pieces;
   for (const Side& s : sides) {
-    for (OpenPiece p : open_pieces(g, s, seal)) {
+    for (OpenPiece p : open_pieces(g, s, seal, opt.blocked)) {
       p.area *= 0.5;
       p.length *= 0.5;
       pieces.push_back(p);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include <Eigen/Eigenvalues>
@@ -369,6 +370,27 @@ double ClosureIntegrator::largest_motion(const ValveState& before, const ValveSt
   return d;
 }
 
+std::string ClosureIntegrator::describe_node(int node) const {
+  const ValveModel& m = scene_.model;
+  if (m.surface_nodes <= 0 || node < 0) return "";
+  const int corners = static_cast<int>(m.linear.V.rows());
+  if (node >= corners) return " (a mid-edge node)";
+  const int i = node % m.surface_nodes, layer = node / m.surface_nodes;
+  const bool anterior = m.surface_st(i, 0) < 0.5;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, " (%s leaflet, s = %.3f, %.0f %% of the way to the free edge, %s",
+                anterior ? "anterior" : "posterior", m.surface_st(i, 0), 100.0 * m.surface_st(i, 1),
+                layer == 0 ? "atrial surface" : "ventricular side");
+  std::string out = buf;
+  for (size_t c = 0; c < scene_.grasps.size(); ++c) {
+    const ClipGrasp& g = scene_.grasps[c];
+    const auto& band = anterior ? g.anterior_band : g.posterior_band;
+    if (std::find(band.begin(), band.end(), i) != band.end())
+      out += ", grasped by clip " + std::to_string(c + 1);
+  }
+  return out + ")";
+}
+
 // The linearization point was checked when it was linearized; the step's end must be valid
 // too, or the next step would start from an inverted element that no smaller step can mend.
 StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eigen::VectorXd& x1) {
@@ -381,8 +403,9 @@ StepOutcome ClosureIntegrator::check_trial(const Eigen::VectorXd& x0, const Eige
     counters_.contact_s += seconds_since(tc);
     if (crossing >= 0) {
       ++counters_.crossings;
-      return failed(Outcome::kLeafletCrossing,
-                    "node " + std::to_string(crossing) + " would pass through a leaflet surface");
+      return failed(Outcome::kLeafletCrossing, "node " + std::to_string(crossing) +
+                                                   describe_node(crossing) +
+                                                   " would pass through a leaflet surface");
     }
   }
   return {};

@@ -171,9 +171,10 @@ void add_device_clip(const ValveSequence& seq, const ClosureOptions& opt, int in
   }
   // Ties: each grasped cross-section to the two nearest of the other band (offset along the line,
   // distance from the free edge), at the distance they have when both bands lie flat face to
-  // face, spacer (at least the contact distance) between their atrial surfaces.
+  // face, spacer (at least the contact law's reach, where it stops pushing) between their atrial
+  // surfaces: the ties do not hold the surfaces where the contact law pushes them apart.
   const double gap = 0.5 * (opt.model.al_thickness_mm + opt.model.pl_thickness_mm) +
-                     std::max(clip.spacer_mm, opt.contact.contact_mm);
+                     std::max(clip.spacer_mm, opt.contact.alarm_mm);
   std::set<std::pair<int, int>> pairs;
   auto tie = [&](const Band& from, const Band& to, bool from_anterior) {
     for (size_t i = 0; i < from.nodes.size(); ++i) {

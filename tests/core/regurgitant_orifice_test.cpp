@@ -154,6 +154,31 @@ TEST(RegurgitantOrifice, AClipMakesTwoOpenings) {
   EXPECT_LT(r.openings[0].end, r.openings[1].begin);  // the larger is the first along y
 }
 
+TEST(RegurgitantOrifice, ADevicesStretchIsCutOutOfTheOpeningsExactly) {
+  // A slit 1 mm wide, and a device filling [b0, b1] of the line whose edges fall between the
+  // columns of a coarse grid (0.55 mm apart): two openings, ending and beginning exactly at the
+  // device's edges, their area the slit's less the device's 22 (b1 - b0) mm x 1 mm.
+  Slit s;
+  s.gap = slot(1.0);
+  s.ures = 80;
+  const double b0 = 0.4321, b1 = 0.5678;
+  const RegurgitantOrifice open = measure_regurgitant_orifice(s.grid(), {});
+  OrificeOptions o;
+  o.blocked = {{b0, b1}};
+  const RegurgitantOrifice r = measure_regurgitant_orifice(s.grid(), o);
+  ASSERT_EQ(r.openings.size(), 2u);
+  const Opening& left = r.openings[0].begin < r.openings[1].begin ? r.openings[0] : r.openings[1];
+  const Opening& right = &left == &r.openings[0] ? r.openings[1] : r.openings[0];
+  EXPECT_NEAR(left.end, b0, 1e-12);
+  EXPECT_NEAR(right.begin, b1, 1e-12);
+  EXPECT_NEAR(r.aroa_mm2, open.aroa_mm2 - 22.0 * (b1 - b0) * 1.0, 1e-6);
+  // A device narrower than the column spacing, between two columns, still splits the slit.
+  o.blocked = {{0.5001, 0.5002}};
+  const RegurgitantOrifice thin = measure_regurgitant_orifice(s.grid(), o);
+  EXPECT_EQ(thin.openings.size(), 2u);
+  EXPECT_NEAR(thin.aroa_mm2, open.aroa_mm2 - 22.0 * 0.0001, 1e-6);
+}
+
 TEST(RegurgitantOrifice, IndependentOfPoseAndConvergentUnderRefinement) {
   Slit s;
   s.gap = slot(0.8);

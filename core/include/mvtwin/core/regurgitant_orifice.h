@@ -32,7 +32,9 @@ struct OrificeOptions {
   /// (the commissural ends are left out, as in echo's A2-P2 measurement).
   double central_fraction = 0.7;
   /// Stretches of the coaptation line [begin, end] (as Opening::begin) that a clip device's
-  /// body fills: sealed whatever the gap (a spacer holds the leaflets apart but blocks the flow).
+  /// body fills: cut out of the openings whatever the gap (the device holds the leaflets apart
+  /// but blocks the flow), exactly at their ends, also between columns; the columns keep their
+  /// measured gaps.
   std::vector<std::pair<double, double>> blocked;
 
   bool is_valid(std::string* error) const;

@@ -119,6 +119,9 @@ class ClosureIntegrator {
   double clip_gap(int c, const Eigen::VectorXd& x) const;
   int num_clips() const { return static_cast<int>(scene_.grasps.size()); }
   const std::vector<ClipGrasp>& grasps() const { return scene_.grasps; }
+  /// Where a node of the model is, for messages: " (anterior leaflet, s = 0.230, 85 % of the way
+  /// to the free edge, atrial surface, grasped by clip 1)"; empty without a model.
+  std::string describe_node(int node) const;
 
   /// Work counters so far (steps and halvings are the driver's): crossings, Newton iterations,
   /// time per part, contact and linear-solver statistics. Interpenetration is measured by
