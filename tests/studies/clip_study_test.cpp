@@ -61,18 +61,14 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
       ASSERT_TRUE(std::isfinite(op.eroa_true_mm2)) << op.truth_reason;
       ASSERT_TRUE(std::isfinite(op.eroa_predicted_mm2)) << op.prediction_reason;
       ASSERT_TRUE(std::isfinite(op.eroa_default_mm2));
-      // The clipped valve's diastole fails on these coarse models for 3 of the 8 (crossings in
-      // the clip phase or while settling, docs/studies.md "Clip"): the study keeps the EROA and
-      // names the failure; most must open.
+      // Every clipped valve opens (with the diastole's contact as soft as its few mmHg, 3 of
+      // these 8 failed in the clip phase, docs/clip-devices.md); a failure would be kept with
+      // its reason.
       for (const auto& [mva, reason] :
            {std::pair{op.mva_true_cm2, op.truth_reason},
             std::pair{op.mva_predicted_cm2, op.prediction_reason}}) {
-        if (std::isfinite(mva)) {
-          EXPECT_GT(mva, 0.0);
-          ++opened;
-        } else {
-          EXPECT_NE(reason.find("diastole failed"), std::string::npos) << reason;
-        }
+        EXPECT_TRUE(std::isfinite(mva) && mva > 0.0) << mva << ": " << reason;
+        opened += std::isfinite(mva) && mva > 0.0;
         ++diastoles;
       }
       // An interval from the calibration's covariance.
@@ -98,7 +94,7 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
     for (const auto& op : p.options)
       count(op.eroa_predicted_mm2, op.eroa_default_mm2, op.eroa_true_mm2);
   }
-  EXPECT_GE(2 * opened, diastoles) << opened << " of " << diastoles << " clipped valves opened";
+  EXPECT_EQ(opened, diastoles) << opened << " of " << diastoles << " clipped valves opened";
   EXPECT_EQ(r.summary.at("eroa_compared"), n_eroa);
   EXPECT_EQ(r.summary.at("eroa_within_tolerance"), in_eroa);
   EXPECT_EQ(r.summary.at("eroa_default_within_tolerance"), in_default);
