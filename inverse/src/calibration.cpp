@@ -550,8 +550,19 @@ CalibrationResult calibrate(ClosureObjective& objective, const CalibrationOption
         best_step = static_cast<int>(k);
       }
     }
+    // Never worse than the start on the model: the search model's optimum can lie off the
+    // model's (a flail seen on a coarse grid), and the start was simulated on the model above.
+    const bool start_kept = es[0].mean_mm < kept.mean_mm;
+    if (start_kept) {
+      kept = es[0];
+      r.fitted = r.start;
+    }
     char line[200];
-    if (best_step < 0) {
+    if (start_kept) {
+      std::snprintf(line, sizeof line,
+                    "start kept (the search's fit and its Gauss-Newton steps were worse on the "
+                    "model; the uncertainty is the search fit's)");
+    } else if (best_step < 0) {
       std::snprintf(line, sizeof line, "Gauss-Newton step not kept (no damping lowered the error)");
     } else {
       std::snprintf(line, sizeof line, "Gauss-Newton step kept (damping %g)",
