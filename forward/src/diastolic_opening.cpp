@@ -30,7 +30,8 @@ TriangleMesh clip_device_footprint(const ClosureResult& r, const AnnulusPlane& p
     std::vector<int> order(pts.size());
     for (size_t i = 0; i < pts.size(); ++i) order[i] = static_cast<int>(i);
     auto xy = [&](int i) {
-      return Eigen::Vector2d(e1.dot(pts[static_cast<size_t>(i)]), e2.dot(pts[static_cast<size_t>(i)]));
+      return Eigen::Vector2d(e1.dot(pts[static_cast<size_t>(i)]),
+                             e2.dot(pts[static_cast<size_t>(i)]));
     };
     std::sort(order.begin(), order.end(), [&](int a, int b) {
       const Eigen::Vector2d pa = xy(a), pb = xy(b);

@@ -165,9 +165,8 @@ TEST_F(PatientFile, ChordaeRupturesAreAnatomyAndOlderFilesConvert) {
 // linearly and periodically between sites, kept by the file, absent from older files (the model
 // then starts from the end-diastolic distances), and refused when malformed.
 TEST_F(PatientFile, MarginalChordaeLengthsAreAnatomyKeptByTheFile) {
-  EXPECT_TRUE(
-      make_virtual_patient(11, VirtualPatientOptions::before_closing_anatomy())
-          .sequence.marginal_chordae_lengths.empty());  // not by the generator before them
+  EXPECT_TRUE(make_virtual_patient(11, VirtualPatientOptions::before_closing_anatomy())
+                  .sequence.marginal_chordae_lengths.empty());  // not by the generator before them
   const Patient with = make_virtual_patient(11);
   const std::vector<ChordaLength>& made = with.sequence.marginal_chordae_lengths;
   ASSERT_EQ(made.size(), 28u);

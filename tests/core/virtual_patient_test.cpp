@@ -163,8 +163,9 @@ TEST(VirtualPatient, ClosingAnatomyClosesTheCommissuresAndRecordsTheChordae) {
 
 // With chordae lengths as anatomy, a flail is one posterior scallop's chordae torn (4-6 of the
 // 28, P2 the most common; docs/virtual-patients.md, "Flail scallops"); the generator before the
-// closing anatomy keeps its 1-3 chordae. Sites are k/28 along the free edge: the posterior leaflet's are
-// 15-27, P3 next to the posteromedial commissure (s = 0.5), P1 next to the anterolateral one.
+// closing anatomy keeps its 1-3 chordae. Sites are k/28 along the free edge: the posterior
+// leaflet's are 15-27, P3 next to the posteromedial commissure (s = 0.5), P1 next to the
+// anterolateral one.
 TEST(VirtualPatient, AFlailWithChordaeLengthsIsAScallopsChordae) {
   VirtualPatientOptions on, plain = VirtualPatientOptions::before_closing_anatomy();
   on.pathology = plain.pathology = Pathology::kProlapseRupturedChordae;

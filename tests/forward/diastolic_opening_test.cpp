@@ -104,12 +104,12 @@ TEST(Diastole, AClipsFootprintIsTheHullOfItsGraspedBandsSeenAlongTheAnnulusNorma
     p.emplace_back(-3.0 + k, 0.5, 1.0);  // inside the hull
   }
   r.positions.resize(3 * static_cast<Eigen::Index>(p.size()));
-  for (size_t i = 0; i < p.size(); ++i) r.positions.segment<3>(3 * static_cast<Eigen::Index>(i)) = p[i];
+  for (size_t i = 0; i < p.size(); ++i)
+    r.positions.segment<3>(3 * static_cast<Eigen::Index>(i)) = p[i];
   r.clip_grasps.push_back(g);
   r.clip_grasps.push_back(ClipGrasp{});  // the paper's spring: no band, no footprint
   const double tilt = 0.4;
-  AnnulusPlane plane{Eigen::Vector3d::Zero(),
-                     Eigen::Vector3d(0.0, std::sin(tilt), std::cos(tilt))};
+  AnnulusPlane plane{Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, std::sin(tilt), std::cos(tilt))};
   const TriangleMesh f = clip_device_footprint(r, plane);
   ASSERT_EQ(f.V.rows(), 4);  // the four corners; the points on the edges and inside drop out
   ASSERT_EQ(f.F.rows(), 2);

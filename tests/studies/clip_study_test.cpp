@@ -64,9 +64,8 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
       // Every clipped valve opens (with the diastole's contact as soft as its few mmHg, 3 of
       // these 8 failed in the clip phase, docs/clip-devices.md); a failure would be kept with
       // its reason.
-      for (const auto& [mva, reason] :
-           {std::pair{op.mva_true_cm2, op.truth_reason},
-            std::pair{op.mva_predicted_cm2, op.prediction_reason}}) {
+      for (const auto& [mva, reason] : {std::pair{op.mva_true_cm2, op.truth_reason},
+                                        std::pair{op.mva_predicted_cm2, op.prediction_reason}}) {
         EXPECT_TRUE(std::isfinite(mva) && mva > 0.0) << mva << ": " << reason;
         opened += std::isfinite(mva) && mva > 0.0;
         ++diastoles;
