@@ -1,5 +1,6 @@
 #include "mvtwin/forward/diastolic_opening.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 
