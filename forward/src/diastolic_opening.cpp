@@ -136,13 +136,14 @@ DiastolicOpening simulate_diastole(const ValveSequence& seq, const ValveParamete
     of.orifice_refine = 0;  // an open valve has no regurgitant orifice to measure
     ValveParameters p = par;
     p.peak_pressure_mpa = -units::mmhg_to_mpa(d.transmitral_mmhg);
-    // Contact as stiff as in the closure (its penalty scales with the peak pressure, at least
-    // 10 mmHg): the clip phase's ties pull as hard here as there, and the few mmHg of diastole
-    // would leave a contact 12 times softer that lets a free edge beside the grasp through the
-    // other leaflet.
-    const double systolic = std::max(par.peak_pressure_mpa, units::mmhg_to_mpa(10.0));
+    // Contact as stiff as in the closure (its penalty scales with the peak pressure,
+    // SelfContactOptions::stiffness_per_area): the clip phase's ties pull as hard here as there,
+    // and the few mmHg of diastole would leave a contact 12 times softer that lets a free edge
+    // beside the grasp through the other leaflet.
     of.contact.stiffness_factor =
-        std::min(1000.0, of.contact.stiffness_factor * systolic / units::mmhg_to_mpa(10.0));
+        std::min(1000.0, of.contact.stiffness_factor *
+                             SelfContactOptions::scaling_pressure_mpa(par.peak_pressure_mpa) /
+                             SelfContactOptions::scaling_pressure_mpa(p.peak_pressure_mpa));
     if (out.frame >= 0) out.fallback = "on frame " + std::to_string(out.frame) + ": " + out.reason;
     out.frame = f;
     try {

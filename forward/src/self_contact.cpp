@@ -156,9 +156,12 @@ bool SelfContactOptions::is_valid(std::string* error) const {
   return true;
 }
 
+double SelfContactOptions::scaling_pressure_mpa(double peak_pressure_mpa) {
+  return std::max(peak_pressure_mpa, units::mmhg_to_mpa(10.0));
+}
+
 double SelfContactOptions::stiffness_per_area(double peak_pressure_mpa) const {
-  return stiffness_factor * std::max(peak_pressure_mpa, units::mmhg_to_mpa(10.0)) /
-         (alarm_mm - contact_mm);
+  return stiffness_factor * scaling_pressure_mpa(peak_pressure_mpa) / (alarm_mm - contact_mm);
 }
 
 SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double stiffness_per_area,

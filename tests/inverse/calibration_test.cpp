@@ -185,6 +185,39 @@ TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
         << obj.space().specs()[i].name << ", started at " << r.start[i];
 }
 
+TEST(Calibration, TheStartIsKeptWhenTheSearchModelsFitIsWorseOnTheModel) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
+#endif
+  // The start is the model's own minimum (the observation made by the model itself, without
+  // noise, and the fit started at its hidden values), and the search model's minimum lies far
+  // from it (the search model holds the papillary tips at end-diastole, and the chordae make up
+  // for their motion). The search's fit and the Gauss-Newton steps from there are worse on
+  // the model than the start, which the calibration must then return, saying so.
+  ObjectiveOptions model = small_model();
+  model.simulation.settle_mm = 0.0;
+  Patient p = make_virtual_patient(6);
+  observe_with_the_calibration_model(&p, model);
+  const std::string marginal = marginal_restlengths();
+  ClosureObjective obj(p, ParameterSpace(marginal, p.truth->parameters), model);
+  CalibrationOptions co;
+  co.max_simulations = 14;
+  co.search_model = model.simulation;
+  co.search_model->papillary_motion = false;
+  const CalibrationResult r = calibrate(obj, co);
+  ASSERT_GT(r.search_simulations, 0);
+  EXPECT_NE(r.refinement.find("start kept"), std::string::npos) << r.refinement;
+  EXPECT_TRUE(r.fitted == r.start) << r.fitted.transpose() << " from " << r.start.transpose();
+  EXPECT_EQ(r.error_after_mm, r.error_before_mm);
+  // Without the rule the search's fit would have been returned: it is worse on the model.
+  ClosureObjective check(p, ParameterSpace(marginal, p.truth->parameters), model);
+  const Evaluation searched = check.evaluate(r.search_fitted);
+  ASSERT_TRUE(searched.ok);
+  EXPECT_GT(searched.mean_mm, r.error_after_mm + 0.05)
+      << "the search model's fit is " << r.search_fitted.transpose();
+  EXPECT_TRUE(r.sd.allFinite()) << "the uncertainty, from the search fit's Jacobian";
+}
+
 TEST(Calibration, RestLengthScanReachesElongatedChordae) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";

@@ -35,6 +35,9 @@ struct SelfContactOptions {
   /// The penalty stiffness per unit area (N/mm^3) for a closure at peak pressure p (MPa; at
   /// least 10 mmHg is assumed, so that an unloaded valve still has contact).
   double stiffness_per_area(double peak_pressure_mpa) const;
+  /// The pressure the penalty scales with for a peak pressure p (MPa): p, at least 10 mmHg
+  /// (a diastole's negative peak, atrium above ventricle, gets the floor too).
+  static double scaling_pressure_mpa(double peak_pressure_mpa);
 };
 
 /// Leaflet self-contact by vertex-triangle penalties (Mansi et al. 2012, Sec. 2.3: alarm distance
