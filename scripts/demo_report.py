@@ -44,22 +44,28 @@ for p in cal["parameters"]:
     print(f"     {p['name']:<42} {p['fitted']:8.3f}{truth}{flag}")
 
 b = clip["before"]
-print(f"  3. clip, predicted on the detected, calibrated valve: before, orifice "
-      f"{b['orifice_area_mm2']:.1f} mm^2 of {b['annulus_area_mm2']:.0f} mm^2 annulus, "
-      f"coaptation {b['coaptation_length_mm']:.1f} mm")
+bo = clip.get("before_open") or {}
+
+
+def mva(o):
+    return f"MVA {o['mva_cm2']:.2f} cm^2" if o and o.get("converged") else "MVA not simulated"
+
+
+print(f"  3. clip, predicted on the detected, calibrated valve: before, EROA {b['eroa_mm2']:.1f} mm^2 "
+      f"({b['mr_grade']} MR), coaptation {b['coaptation_length_mm']:.1f} mm, {mva(bo)}")
 ranked = clip.get("ranked", [])
 if ranked:
     best = ranked[0]
     a = best["after"]
-    areas = ", ".join(f"{x:.1f}" for x in a["component_areas_mm2"])
-    print(f"     best clip of {len(ranked)} at position,depth {best['sites']}: orifice "
-          f"{a['orifice_area_mm2']:.1f} mm^2 in {a['orifice_components']} opening(s) ({areas}), "
-          f"coaptation {a['coaptation_length_mm']:.1f} mm, clip gap "
-          f"{', '.join(f'{g:.1f}' for g in a['clip_gap_end_mm'])} mm")
+    areas = ", ".join(f"{x:.1f}" for x in a["openings_mm2"])
+    print(f"     best of {len(ranked)} options, {best['sites']}: EROA {a['eroa_mm2']:.1f} mm^2 "
+          f"({a['mr_grade']} MR) in {len(a["openings_mm2"])} opening(s) (anatomic {areas} mm^2), coaptation "
+          f"{a['coaptation_length_mm']:.1f} mm, {mva(best.get('open'))}"
+          f"{' (STENOSIS)' if (best.get('open') or {}).get('stenosis') else ''}")
     if truth_clip:
         tb, ta = truth_clip["before"], truth_clip["after"]
-        print(f"     the truth (its anatomy and hidden parameters, same model): before "
-              f"{tb['orifice_area_mm2']:.1f} mm^2, after the same clip {ta['orifice_area_mm2']:.1f} mm^2 "
-              f"in {ta['orifice_components']} opening(s); prediction error "
-              f"{a['orifice_area_mm2'] - ta['orifice_area_mm2']:+.1f} mm^2 after, "
-              f"{b['orifice_area_mm2'] - tb['orifice_area_mm2']:+.1f} mm^2 before")
+        print(f"     the truth (its anatomy and hidden parameters, same model): before EROA "
+              f"{tb['eroa_mm2']:.1f} mm^2, after the same clip {ta['eroa_mm2']:.1f} mm^2, "
+              f"MVA {truth_clip['mva_cm2']:.2f} cm^2; prediction error "
+              f"{a['eroa_mm2'] - ta['eroa_mm2']:+.1f} mm^2 after, "
+              f"{b['eroa_mm2'] - tb['eroa_mm2']:+.1f} mm^2 before")
