@@ -59,7 +59,7 @@ if ranked:
     a = best["after"]
     areas = ", ".join(f"{x:.1f}" for x in a["openings_mm2"])
     print(f"     best of {len(ranked)} options, {best['sites']}: EROA {a['eroa_mm2']:.1f} mm^2 "
-          f"({a['mr_grade']} MR) in {len(a["openings_mm2"])} opening(s) (anatomic {areas} mm^2), coaptation "
+          f"({a['mr_grade']} MR) in {len(a['openings_mm2'])} opening(s) (anatomic {areas} mm^2), coaptation "
           f"{a['coaptation_length_mm']:.1f} mm, {mva(best.get('open'))}"
           f"{' (STENOSIS)' if (best.get('open') or {}).get('stenosis') else ''}")
     if truth_clip:
