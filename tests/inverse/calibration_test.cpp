@@ -74,6 +74,26 @@ std::string marginal_restlengths() {
          std::string(kChordaeGroupNames[2]);
 }
 
+/// The unsettled small model (on 16 x 8 the settled end jumps with the rest lengths,
+/// docs/forward-status.md) and virtual patient 6 observed by it without noise: a patient whose
+/// marginal chordae both hold the closed valve on this model (+0.1 on either factor moves the
+/// closure 0.58 / 0.39 mm mean, anterolateral / posteromedial; on virtual patient 3 they are
+/// nearly slack, 0.08 / 0.04 mm). Simulated once for the tests that use it.
+ObjectiveOptions unsettled_small_model() {
+  ObjectiveOptions model = small_model();
+  model.simulation.settle_mm = 0.0;
+  return model;
+}
+
+const Patient& exactly_observed_patient() {
+  static const Patient p = [] {
+    Patient q = make_virtual_patient(6);
+    observe_with_the_calibration_model(&q, unsettled_small_model());
+    return q;
+  }();
+  return p;
+}
+
 TEST(ClosureObjective, NeedsAnObservedClosedSurface) {
   const Patient p = make_virtual_patient(3);  // closed frames not simulated
   EXPECT_THROW(ClosureObjective(p, ParameterSpace("restlength", ValveParameters{}), small_model()),
@@ -156,17 +176,12 @@ TEST(Calibration, RecoversTheMarginalRestLengthsWhenTheModelIsExact) {
   // The optimizer's own check: observation made by the calibration model itself, without
   // noise (deliberately the inverse crime that calibrations must avoid), so the hidden values
   // are the exact minimum.
-  // Unsettled (the end state when the pressure peaks): on this 16 x 8 model the settled end
-  // jumps with the rest lengths (docs/forward-status.md), and on an AMD EPYC's BLAS the fit
-  // stopped in one of those jumps, 0.032 from the truth.
-  // A patient whose marginal chordae both hold the closed valve on this model: +0.1 on either
-  // factor moves the closure 0.58 / 0.39 mm mean (anterolateral / posteromedial). On virtual
-  // patient 3 (the closing anatomy's chordae lengths) they are nearly slack, 0.08 / 0.04 mm, and
-  // the fit reached the truth's error at 1.097 for 0.990: nothing to recover.
-  ObjectiveOptions model = small_model();
-  model.simulation.settle_mm = 0.0;
-  Patient p = make_virtual_patient(6);
-  observe_with_the_calibration_model(&p, model);
+  // Unsettled (the end state when the pressure peaks): on an AMD EPYC's BLAS the settled fit
+  // stopped in one of the settled end's jumps, 0.032 from the truth. On virtual patient 3 (the
+  // closing anatomy's chordae lengths) the marginal chordae are nearly slack and the fit reached
+  // the truth's error at 1.097 for 0.990: nothing to recover; patient 6's hold the valve.
+  const ObjectiveOptions model = unsettled_small_model();
+  const Patient& p = exactly_observed_patient();
   const std::string marginal = marginal_restlengths();
   ClosureObjective obj(p, ParameterSpace(marginal, truth_with_defaults_for(p, marginal)), model);
   CalibrationOptions co;
@@ -189,15 +204,13 @@ TEST(Calibration, TheStartIsKeptWhenTheSearchModelsFitIsWorseOnTheModel) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "dozens of closures take too long under AddressSanitizer";
 #endif
-  // The start is the model's own minimum (the observation made by the model itself, without
-  // noise, and the fit started at its hidden values), and the search model's minimum lies far
-  // from it (the search model holds the papillary tips at end-diastole, and the chordae make up
-  // for their motion). The search's fit and the Gauss-Newton steps from there are worse on
-  // the model than the start, which the calibration must then return, saying so.
-  ObjectiveOptions model = small_model();
-  model.simulation.settle_mm = 0.0;
-  Patient p = make_virtual_patient(6);
-  observe_with_the_calibration_model(&p, model);
+  // The fit starts at the hidden values of an observation made by the model itself without
+  // noise (near the model's minimum: 0.16 mm, the resampling's floor), and the search model's
+  // minimum lies far from it (the search model holds the papillary tips at end-diastole, and the
+  // chordae make up for their motion). The search's fit and the Gauss-Newton steps from there
+  // are worse on the model than the start, which the calibration must then return, saying so.
+  const ObjectiveOptions model = unsettled_small_model();
+  const Patient& p = exactly_observed_patient();
   const std::string marginal = marginal_restlengths();
   ClosureObjective obj(p, ParameterSpace(marginal, p.truth->parameters), model);
   CalibrationOptions co;
