@@ -316,6 +316,9 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
     }
     json r{{"index", index}};
     try {
+      // A study resumed from its records alone (on another machine, or with its observation
+      // cache removed) makes again the observations that its unfinished items need.
+      detail::ensure_observed(file_of(member), o.seed, index, o.observation);
       const Patient p = load(file_of(member));
       if (!predict) {
         const auto t = std::chrono::steady_clock::now();

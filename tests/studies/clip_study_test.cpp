@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
@@ -137,6 +138,24 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
   ASSERT_EQ(none.scanned.size(), 4u);  // max_scanned
   EXPECT_EQ(none.scanned[0].at("eroa_true_mm2"), r.patients[0].eroa_no_clip_true_mm2);
   EXPECT_EQ(none.scanned[0].at("observe_s"), 0.0);  // cached
+
+  // Resumed from its records alone (another machine: no observations) with one truth missing:
+  // that truth is redone on its patient's observation made again, and nothing else is.
+  fs::remove_all(o.out / "observed");
+  char missing[48];
+  std::snprintf(missing, sizeof missing, "patient_%04d_true_1", r.patients[1].index);
+  ASSERT_TRUE(fs::remove(o.out / "records" / (std::string(missing) + ".json")));
+  resumed = 0;
+  const ClipStudyResult redone = run_clip_study(o, *pool);
+  EXPECT_EQ(resumed, 2 + 2 * 3 - 1);
+  EXPECT_EQ(redone.patients[1].options[1].eroa_true_mm2, r.patients[1].options[1].eroa_true_mm2);
+  EXPECT_EQ(redone.patients[1].options[1].mva_true_cm2, r.patients[1].options[1].mva_true_cm2);
+  int observed_again = 0;
+  for (const auto& e : fs::directory_iterator(o.out / "observed"))
+    observed_again += e.path().filename().string().find(r.patients[1].id + "_") != std::string::npos
+                          ? 1
+                          : 100;  // another patient's observation: made needlessly
+  EXPECT_EQ(observed_again, 1);
   fs::remove_all(dir);
 }
 
