@@ -119,13 +119,20 @@ TEST(DeviceClip, GraspsABandAsWideAsTheArmsAndAsDeepAsTheLeafletInserts) {
     // insertion of the free edge; the body's stretch of the line holds the position.
     const ValveModel& m = sc.model;
     std::set<int> grasped;
+    double shortest_tie = 1e9;
     for (const SceneSpring& sp : sc.springs) {
       EXPECT_TRUE(sp.bilateral);
+      // The ties hold the bands no closer than the contact law's reach (its alarm distance,
+      // or the spacer): nearer, they would pull against the contact pushing the surfaces apart.
       EXPECT_GE(sp.rest_length, 0.5 * (o.model.al_thickness_mm + o.model.pl_thickness_mm) +
-                                    std::max(d.spacer_mm, o.contact.contact_mm) - 1e-12);
+                                    std::max(d.spacer_mm, o.contact.alarm_mm) - 1e-12);
+      shortest_tie = std::min(shortest_tie, sp.rest_length);
       grasped.insert(sp.a.front());
       grasped.insert(sp.b.front());
     }
+    // ... and the nearest pairs are tied at about that distance, not farther.
+    EXPECT_LT(shortest_tie, 0.5 * (o.model.al_thickness_mm + o.model.pl_thickness_mm) +
+                                std::max(d.spacer_mm, o.contact.alarm_mm) + 0.5);
     EXPECT_EQ(static_cast<int>(grasped.size()), g.anterior_nodes + g.posterior_nodes);
     for (int i : grasped) {
       const bool anterior = m.surface_st(i, 0) < 0.5;

@@ -86,6 +86,35 @@ TEST(Diastole, TheOpenValveRestsOnItsWidestFrameAndAClipMakesTwoSmallerOrifices)
   EXPECT_EQ(clipped.openings_cm2.size(), 2u);
   EXPECT_LT(clipped.mva_cm2, 0.8 * open.mva_cm2);
   EXPECT_GT(clipped.gradient_mmhg, open.gradient_mmhg);
+  // The device and the tissue it holds close what they cover. The XTW holds the leaflets
+  // against each other, so its footprint lies on tissue; the PASCAL Ace holds them around a
+  // 6 mm spacer, so between its bands the leaflets alone would leave a channel that the device
+  // fills: the openings between the leaflets alone are larger by no more than the footprint seen
+  // along the annulus normal.
+  const ClipDevice& ace = clip_device("ACE");
+  ClosureOptions oa = o;
+  oa.clips[0].width_mm = ace.width_mm;
+  oa.clips[0].arm_length_mm = ace.arm_length_mm;
+  oa.clips[0].spacer_mm = ace.spacer_mm;
+  oa.clips[0].device = ace.name;
+  const DiastolicOpening spaced = simulate_diastole(p.sequence, p.truth->parameters, oa);
+  ASSERT_TRUE(spaced.converged) << spaced.reason;
+  const ClosureSample& last = spaced.result.samples.back();
+  const auto annulus = last.la_surface.points().topRows(last.la_surface.ures());
+  const AnnulusPlane plane = least_squares_plane(annulus);
+  const double bare_cm2 = units::mm2_to_cm2(
+      measure_closure(annulus, last.la_surface.triangulate(), 0.2).orifice_area_mm2);
+  const TriangleMesh f = clip_device_footprint(spaced.result, plane);
+  ASSERT_GT(f.F.rows(), 0);
+  double footprint_mm2 = 0;
+  for (Eigen::Index t = 0; t < f.F.rows(); ++t) {
+    const Eigen::Vector3d u = f.V.row(f.F(t, 0)), v = f.V.row(f.F(t, 1)), w = f.V.row(f.F(t, 2));
+    footprint_mm2 += 0.5 * std::abs((v - u).cross(w - u).dot(plane.normal));
+  }
+  EXPECT_GT(bare_cm2, spaced.mva_cm2) << "the device fills the channel between its bands";
+  // (0.2 mm pixels along the footprint's outline: 0.2 x its perimeter, under 0.1 cm^2 here)
+  EXPECT_LE(bare_cm2 - spaced.mva_cm2, units::mm2_to_cm2(footprint_mm2) + 0.1)
+      << "footprint " << footprint_mm2 << " mm^2";
 }
 
 TEST(Diastole, AClipsFootprintIsTheHullOfItsGraspedBandsSeenAlongTheAnnulusNormal) {
