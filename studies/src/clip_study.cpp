@@ -153,6 +153,11 @@ std::string option_text(const std::string& device, double position) {
   return device + " at " + number(position, 2);
 }
 
+/// The truth inside the prediction's 95 % interval.
+bool inside_95(double predicted, double sd, double truth) {
+  return std::abs(truth - predicted) <= inverse::kZ95 * sd;
+}
+
 bool within(double predicted, double truth, double abs_tol, double rel_tol) {
   return std::isfinite(predicted) && std::isfinite(truth) &&
          std::abs(predicted - truth) <= std::max(abs_tol, rel_tol * std::abs(truth));
@@ -504,9 +509,6 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
     err_cal.push_back(std::abs(pred - truth));
     err_def.push_back(std::abs(def - truth));
   };
-  auto in_interval_of = [](double pred, double sd, double truth) {
-    return std::abs(truth - pred) <= inverse::kZ95 * sd;
-  };
   for (const ClipStudyPatient& p : res.patients) {
     if (p.status != "ok") ++failed_patients;
     count_eroa(p.eroa_no_clip_predicted_mm2, p.eroa_no_clip_default_mm2, p.eroa_no_clip_true_mm2);
@@ -522,7 +524,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       if (std::isfinite(op.eroa_predicted_sd_mm2) && std::isfinite(op.eroa_true_mm2)) {
         ++n_interval_all;
         in_interval_all +=
-            in_interval_of(op.eroa_predicted_mm2, op.eroa_predicted_sd_mm2, op.eroa_true_mm2);
+            inside_95(op.eroa_predicted_mm2, op.eroa_predicted_sd_mm2, op.eroa_true_mm2);
       }
     }
     if (p.best_true >= 0 && p.best_predicted >= 0) {
@@ -537,8 +539,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       const ClipStudyOption& b = p.options[static_cast<std::size_t>(p.best_predicted)];
       if (std::isfinite(b.eroa_predicted_sd_mm2) && std::isfinite(b.eroa_true_mm2)) {
         ++n_interval;
-        in_interval +=
-            in_interval_of(b.eroa_predicted_mm2, b.eroa_predicted_sd_mm2, b.eroa_true_mm2);
+        in_interval += inside_95(b.eroa_predicted_mm2, b.eroa_predicted_sd_mm2, b.eroa_true_mm2);
       }
     }
   }
@@ -587,6 +588,11 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
 namespace {
 
 std::string cell(double v, int digits = 1) { return std::isfinite(v) ? number(v, digits) : "-"; }
+std::string yes_no(bool b) { return b ? "yes" : "no"; }
+std::string inside_interval(double predicted, double sd, double truth) {
+  if (!std::isfinite(predicted) || !std::isfinite(sd) || !std::isfinite(truth)) return "-";
+  return yes_no(inside_95(predicted, sd, truth));
+}
 
 void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const StudyFolder& f) {
   json patients = json::array();
@@ -721,14 +727,31 @@ void write_outputs(const ClipStudyOptions& o, const ClipStudyResult& r, const St
           {p.id, option_text(op.device, op.positions.at(0)), cell(op.eroa_true_mm2),
            cell(op.eroa_predicted_mm2) + " ± " + cell(inverse::kZ95 * op.eroa_predicted_sd_mm2),
            cell(op.eroa_default_mm2),
+           inside_interval(op.eroa_predicted_mm2, op.eroa_predicted_sd_mm2, op.eroa_true_mm2),
            cell(op.mva_true_cm2, 2) + " / " + cell(op.mva_predicted_cm2, 2),
            cell(op.gradient_true_mmhg) + " / " + cell(op.gradient_predicted_mmhg),
+           yes_no(op.stenosis_true) + " / " + yes_no(op.stenosis_predicted),
            std::to_string(op.rank_true) + " / " + std::to_string(op.rank_predicted),
            op.truth_reason.empty() ? op.prediction_reason : op.truth_reason});
   rep.table({"patient", "option", "EROA true, mm^2", "predicted ± 95 %", "default",
-             "MVA true / predicted, cm^2", "gradient true / predicted, mmHg",
-             "rank true / predicted", "failed"},
+             "truth inside 95 %", "MVA true / predicted, cm^2", "gradient true / predicted, mmHg",
+             "stenosis true / predicted", "rank true / predicted", "failed"},
             rows);
+  // What the study cost, from its records (a run resumed over several sessions or machines
+  // reports the whole, where its wall time below is only its own).
+  double observe_s = 0, calibrate_s = 0, predict_s = 0, truth_s = 0;
+  for (const json& m : r.scanned) observe_s += m.value("observe_s", 0.0);
+  for (const auto& p : r.patients) {
+    calibrate_s += p.calibrate_s;
+    predict_s += p.predict_s;
+    for (const auto& op : p.options) truth_s += op.truth_s;
+  }
+  rep.paragraph("Compute, summed over the records (one core each; 0 for what a cache held): " +
+                number((observe_s + calibrate_s + predict_s + truth_s) / 3600.0, 1) +
+                " h: observations " + number(observe_s / 3600.0, 2) + " h, calibrations " +
+                number(calibrate_s / 3600.0, 2) + " h, predictions with their intervals " +
+                number(predict_s / 3600.0, 2) + " h, truths " + number(truth_s / 3600.0, 2) +
+                " h.");
   {
     Plot fig;
     fig.title = "Predicted against true EROA (no clip and every option)";

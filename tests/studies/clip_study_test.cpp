@@ -10,6 +10,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -117,6 +121,30 @@ TEST(ClipStudy, QuickStudyComparesPredictionsWithTheTruthAndResumes) {
   EXPECT_EQ(t.columns.front().strings.size(), 2u * 3u);  // no clip and two options each
   EXPECT_GT(fs::file_size(o.out / "eroa_predicted_vs_true.png"), 1000u);
   EXPECT_GT(fs::file_size(o.out / "report.html"), 1000u);
+  // The report's option table says per option whether the truth lies inside the 95 % interval,
+  // as often as the summary counts it, and the report sums the records' compute.
+  {
+    std::ifstream rf(o.out / "report.md");
+    std::string line, table;
+    int inside = 0, rows = 0;
+    bool in_options = false;
+    while (std::getline(rf, line)) {
+      if (line.rfind("## ", 0) == 0) in_options = line == "## Every option";
+      if (!in_options || line.rfind("| virtual-", 0) != 0) continue;
+      std::vector<std::string> cells;
+      std::stringstream ls(line);
+      std::string c;
+      while (std::getline(ls, c, '|')) cells.push_back(c);
+      ASSERT_GE(cells.size(), 7u) << line;
+      ++rows;
+      inside += cells[6] == " yes ";
+    }
+    EXPECT_EQ(rows, 4);
+    EXPECT_EQ(inside, r.summary.at("truth_in_interval").get<int>());
+    std::ifstream rf2(o.out / "report.md");
+    const std::string text((std::istreambuf_iterator<char>(rf2)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("Compute, summed over the records"), std::string::npos);
+  }
 
   // Resumed: nothing simulated again, the same numbers.
   int resumed = 0;
