@@ -322,9 +322,11 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
     json r{{"index", index}};
     try {
       // A study resumed from its records alone (on another machine, or with its observation
-      // cache removed) makes again the observations that its unfinished items need.
-      detail::ensure_observed(file_of(member), o.seed, index, o.observation);
-      const Patient p = load(file_of(member));
+      // cache removed) makes again the observations that its unfinished items need (only when
+      // missing: ensure_observed would read an existing file once more before load does).
+      const fs::path observed = file_of(member);
+      if (!fs::exists(observed)) detail::ensure_observed(observed, o.seed, index, o.observation);
+      const Patient p = load(observed);
       if (!predict) {
         const auto t = std::chrono::steady_clock::now();
         std::vector<inverse::ClipScenario> s = inverse::simulate_clips(

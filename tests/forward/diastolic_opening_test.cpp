@@ -13,6 +13,16 @@
 namespace mvtwin::forward {
 namespace {
 
+/// The area of a triangle mesh seen along the unit normal n.
+double projected_area(const TriangleMesh& m, const Eigen::Vector3d& n) {
+  double area = 0;
+  for (Eigen::Index t = 0; t < m.F.rows(); ++t) {
+    const Eigen::Vector3d a = m.V.row(m.F(t, 0)), b = m.V.row(m.F(t, 1)), c = m.V.row(m.F(t, 2));
+    area += 0.5 * std::abs((b - a).cross(c - a).dot(n));
+  }
+  return area;
+}
+
 TEST(Gorlin, MeanGradientInvertsTheGorlinRelation) {
   // MVA = Q / (37.7 sqrt(dP)): 37.7 mL/s through 1 cm^2 is 1 mmHg, and the gradient grows with
   // the square of the flow and falls with the square of the area.
@@ -106,11 +116,7 @@ TEST(Diastole, TheOpenValveRestsOnItsWidestFrameAndAClipMakesTwoSmallerOrifices)
       measure_closure(annulus, last.la_surface.triangulate(), 0.2).orifice_area_mm2);
   const TriangleMesh f = clip_device_footprint(spaced.result, plane);
   ASSERT_GT(f.F.rows(), 0);
-  double footprint_mm2 = 0;
-  for (Eigen::Index t = 0; t < f.F.rows(); ++t) {
-    const Eigen::Vector3d u = f.V.row(f.F(t, 0)), v = f.V.row(f.F(t, 1)), w = f.V.row(f.F(t, 2));
-    footprint_mm2 += 0.5 * std::abs((v - u).cross(w - u).dot(plane.normal));
-  }
+  const double footprint_mm2 = projected_area(f, plane.normal);
   EXPECT_GT(bare_cm2, spaced.mva_cm2) << "the device fills the channel between its bands";
   // (0.2 mm pixels along the footprint's outline: 0.2 x its perimeter, under 0.1 cm^2 here)
   EXPECT_LE(bare_cm2 - spaced.mva_cm2, units::mm2_to_cm2(footprint_mm2) + 0.1)
@@ -145,13 +151,8 @@ TEST(Diastole, AClipsFootprintIsTheHullOfItsGraspedBandsSeenAlongTheAnnulusNorma
   // Projected area against the analytic one: in the plane the device's band is 6 mm along x,
   // and across it 3.5 cos(tilt) at x = -3 and 3.5 cos(tilt) - (1.8 + 1.2) sin(tilt) at x = 3
   // (the anterior band rises, the posterior sinks): a trapezoid.
-  const Eigen::Vector3d n = plane.normal;
-  double projected = 0;
-  for (Eigen::Index t = 0; t < f.F.rows(); ++t) {
-    const Eigen::Vector3d a = f.V.row(f.F(t, 0)), b = f.V.row(f.F(t, 1)), c = f.V.row(f.F(t, 2));
-    projected += 0.5 * std::abs((b - a).cross(c - a).dot(n));
-  }
-  EXPECT_NEAR(projected, 6.0 * (3.5 * std::cos(tilt) - 1.5 * std::sin(tilt)), 1e-9);
+  EXPECT_NEAR(projected_area(f, plane.normal), 6.0 * (3.5 * std::cos(tilt) - 1.5 * std::sin(tilt)),
+              1e-9);
   // No bands at all: nothing is covered.
   ClosureResult none;
   none.clip_grasps.push_back(ClipGrasp{});
