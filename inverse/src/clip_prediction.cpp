@@ -315,13 +315,36 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
   if (mesh.enabled) par[np] = post.apply(post.fitted);
   const size_t per = sites.size();
   std::vector<ClipScenario> flat(rows * per);
-  parallel_indices(rows * per, jobs, [&](size_t i) {
+  auto run = [&](size_t i) {
     const size_t k = i / per, c = i % per;
     const forward::ClosureOptions& o = k < np ? options : refined;
     std::vector<ClipScenario> one = simulate_clips(patient, par[k], o, {sites[c]}, 1);
     if (c > 0 || open_before) open_clips(patient, par[k], o, diastole, 1, 1, &one);
     flat[i] = std::move(one.front());
-  });
+  };
+  parallel_indices(rows * per, jobs, run);
+  // A sigma point where a simulation fails (a crossing, an inverted element) is tried again
+  // half as far out, twice at most: the secant over half an SD is as good a linearization, and
+  // one failed direction would otherwise leave every outcome's SD unknown.
+  auto failed_at = [&](size_t k) {
+    for (size_t c = 0; c < per; ++c) {
+      const ClipScenario& s = flat[k * per + c];
+      if (!s.quality.converged || (s.opening.computed && !s.opening.converged)) return true;
+    }
+    return false;
+  };
+  for (int halving = 0; halving < 2; ++halving) {
+    std::vector<size_t> again;
+    for (size_t k = 0; k < np; ++k)
+      if (failed_at(k)) {
+        sp.points[k] = sp.center + 0.5 * (sp.points[k] - sp.center);
+        sp.scale[k] *= 0.5;
+        par[k] = post.apply(sp.points[k]);
+        for (size_t c = 0; c < per; ++c) again.push_back(k * per + c);
+      }
+    if (again.empty()) break;
+    parallel_indices(again.size(), jobs, [&](size_t j) { run(again[j]); });
+  }
   for (size_t i = 0; i < n; ++i) {
     ClipScenario& s = (*scenarios)[i];
     ClipUncertainty& u = s.uncertainty;

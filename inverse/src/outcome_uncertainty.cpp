@@ -25,6 +25,33 @@ double room(const Eigen::VectorXd& x, const Eigen::VectorXd& d, const Eigen::Vec
 }
 }  // namespace
 
+Eigen::MatrixXd bounded_covariance(const Eigen::MatrixXd& covariance, const Eigen::VectorXd& lower,
+                                   const Eigen::VectorXd& upper) {
+  const Eigen::Index n = covariance.rows();
+  if (covariance.cols() != n || lower.size() != n || upper.size() != n)
+    throw Error("outcome uncertainty: the covariance and the bounds differ in size");
+  Eigen::VectorXd precision = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double w = upper[i] - lower[i];
+    if (std::isfinite(w) && w > 0) precision[i] = 12.0 / (w * w);
+  }
+  // The fit's precision C^+ (zero along the directions the data do not see: the pseudo-inverse
+  // of the covariance, whose null space they are) plus the prior's, inverted the same way (a
+  // direction neither the data nor finite bounds limit stays out).
+  auto pseudo_inverse = [](const Eigen::MatrixXd& m) {
+    const Eigen::MatrixXd sym = 0.5 * (m + m.transpose());
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(sym);
+    const Eigen::VectorXd l = es.eigenvalues();
+    const double top = l.size() > 0 ? l.cwiseAbs().maxCoeff() : 0.0;
+    Eigen::VectorXd inv = Eigen::VectorXd::Zero(l.size());
+    for (Eigen::Index k = 0; k < l.size(); ++k)
+      if (l[k] > 1e-12 * top && l[k] > 0) inv[k] = 1.0 / l[k];
+    const Eigen::MatrixXd r = es.eigenvectors() * inv.asDiagonal() * es.eigenvectors().transpose();
+    return Eigen::MatrixXd(0.5 * (r + r.transpose()));
+  };
+  return pseudo_inverse(pseudo_inverse(covariance) + Eigen::MatrixXd(precision.asDiagonal()));
+}
+
 SigmaPoints sigma_points(const Eigen::VectorXd& center, const Eigen::MatrixXd& covariance,
                          const Eigen::VectorXd& lower, const Eigen::VectorXd& upper) {
   const Eigen::Index n = center.size();
@@ -34,8 +61,9 @@ SigmaPoints sigma_points(const Eigen::VectorXd& center, const Eigen::MatrixXd& c
     throw Error("outcome uncertainty: the center or the covariance is not finite");
   SigmaPoints sp;
   sp.center = center;
+  sp.covariance = bounded_covariance(covariance, lower, upper);
   if (n == 0) return sp;
-  const Eigen::MatrixXd c = 0.5 * (covariance + covariance.transpose());
+  const Eigen::MatrixXd& c = sp.covariance;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(c);
   const double top = es.eigenvalues().cwiseAbs().maxCoeff();
   for (Eigen::Index k = 0; k < n; ++k) {

@@ -51,35 +51,95 @@ TEST(OutcomeUncertainty, LinearOutcomesGetTheirExactStandardDeviation) {
       EXPECT_TRUE((sp.points[i].array() >= lo2.array() - 1e-12).all());
       reflected = reflected || sp.scale[i] < 1.0;
     }
-    EXPECT_EQ(reflected, room < 1.0) << "the bounds are felt only where they are near";
+    // Near one bound only, a point goes the other way; between two near bounds their prior
+    // shrinks the spread (checked below) and the points may then fit.
+    if (room != 0.02) {
+      EXPECT_EQ(reflected, room < 1.0) << "the bounds are felt only where they are near";
+    }
+    // The posterior with the bounds' prior, written out as the textbook has it (C is full
+    // rank here): (C^-1 + diag(12 / (hi - lo)^2))^-1.
+    const Eigen::VectorXd w = hi - lo2;
+    const Eigen::MatrixXd Cb =
+        (C.inverse() + Eigen::VectorXd(12.0 / w.array().square()).asDiagonal().toDenseMatrix())
+            .inverse();
+    EXPECT_LT((sp.covariance - Cb).norm(), 1e-10 * Cb.norm());
     const Eigen::VectorXd sd = propagated_sd(sp, A * x + b, at_points(sp, A, b));
-    const Eigen::VectorXd expected = (A * C * A.transpose()).diagonal().cwiseSqrt();
+    const Eigen::VectorXd expected = (A * Cb * A.transpose()).diagonal().cwiseSqrt();
     EXPECT_LT((sd - expected).norm(), 1e-10 * expected.norm()) << sd.transpose();
+    // Far bounds leave the fit's covariance as it is (within 1 %).
+    if (room > 1.0) {
+      EXPECT_LT((expected - (A * C * A.transpose()).diagonal().cwiseSqrt()).norm(),
+                0.01 * expected.norm());
+    }
     // The difference of the two outcomes: its variance (a - b)^T C (a - b), not the sum of
     // theirs.
     const Eigen::MatrixXd P = at_points(sp, A, b);
     const Eigen::VectorXd ab = A.row(0) - A.row(1);
-    EXPECT_NEAR(difference_sd(sp, b[0], P.col(0), b[1], P.col(1)), std::sqrt(ab.dot(C * ab)),
+    EXPECT_NEAR(difference_sd(sp, b[0], P.col(0), b[1], P.col(1)), std::sqrt(ab.dot(Cb * ab)),
                 1e-10);
   }
 }
 
-TEST(OutcomeUncertainty, DirectionsTheDataDoNotDetermineAreLeftOut) {
+TEST(OutcomeUncertainty, DirectionsTheDataDoNotDetermineGetTheRangesSpread) {
   const Eigen::MatrixXd C = random_covariance(4, 2, 9);  // rank 2
   const Eigen::VectorXd x = Eigen::VectorXd::Constant(4, 1.0);
-  const SigmaPoints sp =
-      sigma_points(x, C, Eigen::VectorXd::Constant(4, -5), Eigen::VectorXd::Constant(4, 5));
-  EXPECT_EQ(sp.points.size(), 2u);
+  const Eigen::VectorXd lo = Eigen::VectorXd::Constant(4, -5), hi = Eigen::VectorXd::Constant(4, 5);
+  const SigmaPoints sp = sigma_points(x, C, lo, hi);
+  EXPECT_EQ(sp.points.size(), 4u);
+  // The posterior's precision is the fit's (the pseudo-inverse of C) plus the prior's, 12 / 10^2.
+  const Eigen::MatrixXd precision =
+      C.completeOrthogonalDecomposition().pseudoInverse() + Eigen::MatrixXd::Identity(4, 4) * 0.12;
+  EXPECT_LT((sp.covariance * precision - Eigen::MatrixXd::Identity(4, 4)).norm(), 1e-8);
+  // Along C's null space the data say nothing: exactly the range's variance, 100 / 12.
+  const Eigen::MatrixXd null = C.fullPivLu().kernel();
+  ASSERT_EQ(null.cols(), 2);
+  const Eigen::VectorXd v = null.col(0).normalized();
+  EXPECT_NEAR(v.dot(sp.covariance * v), 100.0 / 12.0, 1e-8);
+  // Where the data see (C's range), the fit's spread is kept: the bounds are far.
   Eigen::MatrixXd A = Eigen::MatrixXd::Ones(1, 4);
   const Eigen::VectorXd sd = propagated_sd(sp, A * x, at_points(sp, A, Eigen::VectorXd::Zero(1)));
-  EXPECT_NEAR(sd[0], std::sqrt((A * C * A.transpose())(0, 0)), 1e-10);
-  // No covariance at all: no points, zero spread.
-  const SigmaPoints none =
-      sigma_points(x, Eigen::MatrixXd::Zero(4, 4), Eigen::VectorXd::Constant(4, -5),
-                   Eigen::VectorXd::Constant(4, 5));
+  EXPECT_NEAR(sd[0], std::sqrt((A * sp.covariance * A.transpose())(0, 0)), 1e-10);
+  const Eigen::VectorXd seen = C * Eigen::VectorXd::Ones(4);
+  EXPECT_NEAR(seen.dot(sp.covariance.ldlt().solve(seen)),
+              seen.dot(C.completeOrthogonalDecomposition().solve(seen)),
+              0.02 * seen.dot(C.completeOrthogonalDecomposition().solve(seen)));
+  // Neither data nor bounds: left out (no points, zero spread).
+  const Eigen::VectorXd inf = Eigen::VectorXd::Constant(4, INFINITY);
+  const SigmaPoints open = sigma_points(x, C, -inf, inf);
+  EXPECT_EQ(open.points.size(), 2u);
+  const SigmaPoints none = sigma_points(x, Eigen::MatrixXd::Zero(4, 4), -inf, inf);
   EXPECT_TRUE(none.points.empty());
   EXPECT_EQ(propagated_sd(none, Eigen::VectorXd::Ones(2), Eigen::MatrixXd(0, 2)),
             Eigen::VectorXd::Zero(2));
+}
+
+TEST(OutcomeUncertainty, AParameterTheDataBarelySeeGetsItsRangesSpreadNotTheFits) {
+  // As calibrated on cohort seed 2026's patient 6: a rest-length factor in [0.7, 1.6] with a
+  // fitted SD of 50, beside a well-determined one (SD 0.003). Without the bounds' prior the
+  // point along the first is 0.7 % of an SD long, and an outcome that jumps by 10 over any move
+  // gets an SD of 10 / 0.007 = 1,400.
+  Eigen::Matrix2d C;
+  C << 2500.0, 0.005, 0.005, 9e-6;
+  const Eigen::Vector2d x(1.26, 1.0), lo(0.7, 0.7), hi(1.6, 1.6);
+  const SigmaPoints sp = sigma_points(x, C, lo, hi);
+  ASSERT_EQ(sp.points.size(), 2u);
+  const double range_var = 0.9 * 0.9 / 12.0;
+  EXPECT_LT(sp.covariance(0, 0), range_var);
+  EXPECT_GT(sp.covariance(0, 0), 0.99 * range_var) << "the data say nothing: the range's";
+  EXPECT_NEAR(std::sqrt(sp.covariance(1, 1)), 0.003, 0.003 * 0.01) << "the data decide";
+  for (size_t i = 0; i < sp.points.size(); ++i) {
+    EXPECT_GE(std::abs(sp.scale[i]), 0.5) << "a step long enough for a secant";
+    EXPECT_TRUE((sp.points[i].array() <= hi.array()).all() &&
+                (sp.points[i].array() >= lo.array()).all());
+  }
+  Eigen::MatrixXd P(2, 1);
+  for (int i = 0; i < 2; ++i) P(i, 0) = sp.points[static_cast<size_t>(i)][0] > x[0] ? 10.0 : 0.0;
+  EXPECT_LE(propagated_sd(sp, Eigen::VectorXd::Zero(1), P)[0], 10.0 / 0.5 + 1e-9);
+  // Bounds that are not a range (equal, reversed or infinite) add no prior.
+  const Eigen::Vector2d inf = Eigen::Vector2d::Constant(INFINITY);
+  EXPECT_LT((bounded_covariance(C, -inf, inf) - C).norm(), 1e-9 * C.norm());
+  EXPECT_LT((bounded_covariance(C, hi, lo) - C).norm(), 1e-9 * C.norm());
+  EXPECT_THROW(bounded_covariance(C, Eigen::VectorXd::Zero(3), hi), Error);
 }
 
 TEST(OutcomeUncertainty, ANonlinearOutcomeIsLinearizedToFirstOrder) {

@@ -18,11 +18,28 @@ namespace mvtwin::inverse {
 /// gradient (linearized propagation through the parameter Jacobian, one simulation per
 /// direction; a secant over one SD rather than a tangent, which the simulated outcomes' small
 /// jumps with the mesh would spoil).
+///
+/// C is the fit's covariance combined with what the bounds say (bounded_covariance): a direction
+/// the data barely see gets the spread of the parameters' range, not the fit's thousands of
+/// SDs, so its point is not a sliver of a step whose secant magnifies the outcome's jumps; one
+/// they do not see at all gets its range's spread instead of none.
 struct SigmaPoints {
   Eigen::VectorXd center;               ///< x, the fitted values (user units)
+  Eigen::MatrixXd covariance;           ///< C: the points' covariance (the bounds included)
   std::vector<Eigen::VectorXd> points;  ///< p_i
   std::vector<double> scale;            ///< a_i
 };
+
+/// The fit's covariance C (Gaussian, linearized) with the bounds as a prior: a parameter known
+/// to lie in [lo, hi] is given that range's uniform variance (hi - lo)^2 / 12 as a Gaussian
+/// prior, precision P = diag(12 / (hi - lo)^2), and the posterior's covariance is
+/// (C^+ + P)^+, C^+ the fit's precision (the pseudo-inverse: zero along the directions the data
+/// do not see). A well-determined parameter (SD much below its range) keeps its SD; one the
+/// data barely see gets at most its range's spread, and one they do not see at all exactly the
+/// prior's (it no longer drops out of the interval). A parameter without finite, ordered bounds
+/// gets no prior.
+Eigen::MatrixXd bounded_covariance(const Eigen::MatrixXd& covariance, const Eigen::VectorXd& lower,
+                                   const Eigen::VectorXd& upper);
 
 /// Throws mvtwin::Error for inconsistent sizes or non-finite values. A zero (or all-null)
 /// covariance gives no points: every outcome's SD is then 0.
