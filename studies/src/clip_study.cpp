@@ -319,7 +319,8 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
       report("simulate", ++done, n, std::string(name) + ": done before (resumed)");
       return rec->dump();
     }
-    json r{{"index", index}};
+    // What made the record (a study resumed over sessions may span several commits).
+    json r{{"index", index}, {"mvtwin_version", kVersion}};
     try {
       // A study resumed from its records alone (on another machine, or with its observation
       // cache removed) makes again the observations that its unfinished items need (only when
