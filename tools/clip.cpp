@@ -408,12 +408,13 @@ void register_clip(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("clip", "Predict the closure after an edge-to-edge clip");
   cmd->footer(
       "Examples:\n  mvtwin clip observed.h5 --params calib.h5 --at 0.5 --out clipped.h5\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at \"0.35;0.65\" --out two.h5\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --device NTW --at \"0.35;0.65\" --no-intervals "
+      "--out two.h5\n"
       "  mvtwin clip observed.h5 --params calib.h5 --suggest --devices XTW --open-best 2 --report "
       "plan/\n"
       "  mvtwin clip observed.h5 --params calib.h5 --suggest --pairs --jobs 2   # long: 6 devices\n"
-      "  mvtwin clip observed.h5 --params calib.h5 --device spring --at 0.5,1   # the paper's "
-      "clip\n"
+      "  mvtwin clip observed.h5 --params calib.h5 --device spring --at 0.5,1 --no-intervals   "
+      "# the paper's clip\n"
       "A site is a position along the coaptation line (0 = anterolateral commissure, 1 =\n"
       "posteromedial). The device (--device, default XTW; docs/clip-devices.md) grasps a band\n"
       "of each leaflet as wide as its arms and as deep as the leaflet inserts (from the\n"
