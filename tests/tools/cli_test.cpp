@@ -572,6 +572,9 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   r = run("study clip --quick --positions 0.5,1.5 --out " + path("k"));
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("positions"), std::string::npos) << r.err;
+  r = run("study clip --quick --fit restlength,leaflet_colour --out " + path("k"));
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("leaflet_colour"), std::string::npos) << r.err;
   r = run("study robustness --quick --set marginal_stiffness_scale=2 --out " + path("r"));
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
