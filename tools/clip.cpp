@@ -267,10 +267,13 @@ int run_clip(const ClipArgs& a) {
   j["intervals"] = {{"computed", intervals},
                     {"why_not", intervals ? "" : posterior.why_not},
                     {"method",
-                     "linearized: one simulation one SD along each direction the calibration "
-                     "determines (eigenvectors of its covariance), and the mesh's part: the "
-                     "change on a mesh 4/3 finer at the fitted values; NAME_sd = sqrt(both "
-                     "squared) per outcome, 95 % = 1.96 SD"},
+                     "linearized: one simulation one SD along each direction of the "
+                     "calibration's covariance combined with the parameters' bounds as a prior "
+                     "(each range's uniform variance; a parameter the data do not determine, "
+                     "listed in unidentified_parameters, gets its range's spread), retried half "
+                     "as far where a simulation fails; and the mesh's part: the change on a mesh "
+                     "4/3 finer at the fitted values; NAME_sd = sqrt(both squared) per outcome, "
+                     "95 % = 1.96 SD"},
                     {"unidentified_parameters", posterior.unidentified}};
   j["provenance"]["seed"] = p.provenance.seed;
   j["provenance"]["source"] = assumed_note(p);
