@@ -88,8 +88,9 @@ void register_study_clip(CLI::App* study, Context& ctx) {
       "Takes the first --patients virtual patients of cohort --seed whose true EROA (their\n"
       "observed closure on the fine model) is at least --min-eroa. Truth: each option (every\n"
       "--devices at every --positions) simulated with the hidden parameters on that fine model\n"
-      "and opened in diastole. Prediction: the same option on the model calibrated from the\n"
-      "noisy observed frames, with 95 % intervals from the calibration; and at the default\n"
+      "and opened in diastole. Prediction: the same option on the model calibrated (--fit:\n"
+      "rest lengths, chordae stiffness, pressure and the leaflets' moduli) from the noisy\n"
+      "observed frames, with 95 % intervals from the calibration; and at the default\n"
       "parameters. Writes study.json, study.h5, a plot and report.md/.html, the calibrations in\n"
       "calibrations/ and the observations in observed/ (or --cache). Resumable: every\n"
       "observation, calibration and simulation is kept. Exit 3 when anything failed.");
