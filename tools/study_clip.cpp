@@ -28,7 +28,7 @@ int run_study_clip(const StudyClipArgs& args) {
   if (given("--min-eroa")) o.min_eroa_mm2 = args.min_eroa;
   if (given("--max-scanned")) o.max_scanned = args.max_scanned;
   if (given("--max-simulations")) o.max_simulations = args.max_simulations;
-  if (given("--fit")) o.fit = args.fit;
+  if (given("--fit") && !args.fit.empty()) o.fit = args.fit;
   o.seed = args.seed;
   if (!args.positions.empty()) o.positions = args.positions;
   if (!args.devices.empty()) o.devices = args.devices;
@@ -115,7 +115,7 @@ void register_study_clip(CLI::App* study, Context& ctx) {
       ->default_str("0.35,0.5,0.65");
   cmd->add_option("--fit", a->fit,
                   "what the calibration fits (groups or names, as mvtwin calibrate --fit)")
-      ->default_val(a->fit);
+      ->default_val(studies::ClipStudyOptions{}.fit);
   cmd->add_option("--max-simulations", a->max_simulations, "the calibration's budget")
       ->check(CLI::Range(1, 100000))
       ->default_val(50);

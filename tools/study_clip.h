@@ -12,7 +12,7 @@
 namespace mvtwin::tools {
 
 struct StudyClipArgs : CommandArgs {
-  std::string out, cache, fit = "restlength,stiffness,pressure,modulus";
+  std::string out, cache, fit;  // fit: ClipStudyOptions' default unless given
   int patients = 10, jobs = 2, max_scanned = 40, max_simulations = 50;
   std::uint64_t seed = 2026;
   double min_eroa = 20.0;

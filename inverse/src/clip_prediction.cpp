@@ -323,28 +323,31 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
     flat[i] = std::move(one.front());
   };
   parallel_indices(rows * per, jobs, run);
-  // A sigma point where a simulation fails (a crossing, an inverted element) is tried again
-  // half as far out, twice at most: the secant over half an SD is as good a linearization, and
-  // one failed direction would otherwise leave every outcome's SD unknown.
-  auto failed_at = [&](size_t k) {
-    for (size_t c = 0; c < per; ++c) {
-      const ClipScenario& s = flat[k * per + c];
-      if (!s.quality.converged || (s.opening.computed && !s.opening.converged)) return true;
-    }
-    return false;
-  };
-  for (int halving = 0; halving < 2; ++halving) {
-    std::vector<size_t> again;
-    for (size_t k = 0; k < np; ++k)
-      if (failed_at(k)) {
-        sp.points[k] = sp.center + 0.5 * (sp.points[k] - sp.center);
-        sp.scale[k] *= 0.5;
-        par[k] = post.apply(sp.points[k]);
-        for (size_t c = 0; c < per; ++c) again.push_back(k * per + c);
-      }
-    if (again.empty()) break;
-    parallel_indices(again.size(), jobs, [&](size_t j) { run(again[j]); });
+  // A sigma point where a simulation fails is tried again nearer the center
+  // (halve_failed_points). Only columns that ran at the center count: an option whose own
+  // closure failed has no SD to save, and retrying its column would redo every point for nothing.
+  std::vector<char> center_ran(per, 0);
+  center_ran[0] = before_at_center.converged;
+  for (size_t i = 0; i < n; ++i) {
+    const ClipScenario& s = (*scenarios)[i];
+    center_ran[column[i]] = s.quality.converged && (!s.opening.computed || s.opening.converged);
   }
+  halve_failed_points(
+      &sp,
+      [&](size_t k) {
+        for (size_t c = 0; c < per; ++c) {
+          const ClipScenario& s = flat[k * per + c];
+          if (center_ran[c] &&
+              (!s.quality.converged || (s.opening.computed && !s.opening.converged)))
+            return true;
+        }
+        return false;
+      },
+      [&](const std::vector<size_t>& ks) {
+        for (size_t k : ks) par[k] = post.apply(sp.points[k]);
+        parallel_indices(ks.size() * per, jobs,
+                         [&](size_t j) { run(ks[j / per] * per + j % per); });
+      });
   for (size_t i = 0; i < n; ++i) {
     ClipScenario& s = (*scenarios)[i];
     ClipUncertainty& u = s.uncertainty;

@@ -88,6 +88,24 @@ SigmaPoints sigma_points(const Eigen::VectorXd& center, const Eigen::MatrixXd& c
   return sp;
 }
 
+int halve_failed_points(SigmaPoints* sp, const std::function<bool(size_t)>& failed,
+                        const std::function<void(const std::vector<size_t>&)>& rerun, int times) {
+  int moved = 0;
+  for (int t = 0; t < times; ++t) {
+    std::vector<size_t> again;
+    for (size_t i = 0; i < sp->points.size(); ++i)
+      if (failed(i)) {
+        sp->points[i] = sp->center + 0.5 * (sp->points[i] - sp->center);
+        sp->scale[i] *= 0.5;
+        again.push_back(i);
+      }
+    if (again.empty()) break;
+    moved += static_cast<int>(again.size());
+    rerun(again);
+  }
+  return moved;
+}
+
 Eigen::VectorXd propagated_sd(const SigmaPoints& sp, const Eigen::VectorXd& at_center,
                               const Eigen::MatrixXd& at_points) {
   if (at_points.rows() != static_cast<Eigen::Index>(sp.points.size()) ||

@@ -142,6 +142,53 @@ TEST(OutcomeUncertainty, AParameterTheDataBarelySeeGetsItsRangesSpreadNotTheFits
   EXPECT_THROW(bounded_covariance(C, Eigen::VectorXd::Zero(3), hi), Error);
 }
 
+TEST(OutcomeUncertainty, APointWhoseSimulationFailsIsTriedAgainNearerTheCenter) {
+  // A linear outcome whose "simulation" fails farther than 0.6 of its point's SD step along
+  // direction 0: the point is moved half way in, simulated again, and the SD is the exact one.
+  const Eigen::MatrixXd C = random_covariance(2, 2, 3);
+  const Eigen::Vector2d x(0.5, -0.2), lo(-10, -10), hi(10, 10);
+  SigmaPoints sp = sigma_points(x, C, lo, hi);
+  ASSERT_EQ(sp.points.size(), 2u);
+  const Eigen::MatrixXd A = Eigen::RowVector2d(2.0, -1.0);
+  const Eigen::VectorXd b = Eigen::VectorXd::Constant(1, 3.0);
+  Eigen::MatrixXd P(2, 1);
+  std::vector<size_t> reruns;
+  auto simulate = [&](size_t i, double fails_beyond) {
+    const double reach = std::abs(sp.scale[i]);
+    P(static_cast<Eigen::Index>(i), 0) =
+        reach > fails_beyond ? std::nan("") : (A * sp.points[i] + b)(0);
+  };
+  for (double fails_beyond : {0.6, 0.1}) {  // once moved in it runs; it never runs
+    SCOPED_TRACE(fails_beyond);
+    sp = sigma_points(x, C, lo, hi);
+    reruns.clear();
+    for (size_t i = 0; i < 2; ++i) simulate(i, i == 0 ? fails_beyond : 1e9);
+    const int moved = halve_failed_points(
+        &sp, [&](size_t i) { return std::isnan(P(static_cast<Eigen::Index>(i), 0)); },
+        [&](const std::vector<size_t>& is) {
+          for (size_t i : is) {
+            reruns.push_back(i);
+            simulate(i, i == 0 ? fails_beyond : 1e9);
+          }
+        });
+    const double sd = propagated_sd(sp, A * x + b, P)[0];
+    if (fails_beyond > 0.5) {
+      EXPECT_EQ(moved, 1);
+      EXPECT_EQ(reruns, std::vector<size_t>({0}));
+      EXPECT_DOUBLE_EQ(std::abs(sp.scale[0]), 0.5);
+      EXPECT_NEAR((sp.points[0] - x).norm(),
+                  0.5 * (sigma_points(x, C, lo, hi).points[0] - x).norm(), 1e-12);
+      EXPECT_NEAR(sd, std::sqrt((A * sp.covariance * A.transpose())(0, 0)), 1e-10);
+    } else {
+      EXPECT_EQ(moved, 2) << "twice at most";
+      EXPECT_EQ(reruns, std::vector<size_t>({0, 0}));
+      EXPECT_DOUBLE_EQ(std::abs(sp.scale[0]), 0.25);
+      EXPECT_TRUE(std::isnan(sd)) << "still failing: unknown, not zero";
+    }
+    EXPECT_DOUBLE_EQ(std::abs(sp.scale[1]), 1.0) << "a point that ran is left alone";
+  }
+}
+
 TEST(OutcomeUncertainty, ANonlinearOutcomeIsLinearizedToFirstOrder) {
   // f = exp(x0) x1 at small spread: the first-order SD sqrt(g^T C g), within the secant's
   // second-order error.

@@ -1,4 +1,6 @@
 #pragma once
+#include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,15 @@ Eigen::MatrixXd bounded_covariance(const Eigen::MatrixXd& covariance, const Eige
 /// covariance gives no points: every outcome's SD is then 0.
 SigmaPoints sigma_points(const Eigen::VectorXd& center, const Eigen::MatrixXd& covariance,
                          const Eigen::VectorXd& lower, const Eigen::VectorXd& upper);
+
+/// A point whose simulations failed (a crossing, an inverted element) is moved half way towards
+/// the center (its scale a_i halves) and simulated again, `times` times at most: the secant over
+/// half an SD linearizes as well, and one failed direction would otherwise leave every
+/// outcome's SD unknown. `failed(i)` says whether point i's simulations failed; `rerun(is)`
+/// simulates the moved points `is` again. Returns the number of points moved, counted per move.
+int halve_failed_points(SigmaPoints* sp, const std::function<bool(size_t)>& failed,
+                        const std::function<void(const std::vector<size_t>&)>& rerun,
+                        int times = 2);
 
 /// The SD of each outcome (columns) from its value at the center and at each point (rows of
 /// `at_points`, in the order of `sp.points`); NaN where any of them is not finite.

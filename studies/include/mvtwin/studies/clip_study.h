@@ -48,9 +48,9 @@ struct ClipStudyOptions {
   ValveParameters defaults;
   /// What the calibration fits: calibrate's default plus the leaflets' moduli ("modulus"), since
   /// stiff leaflets are one of the cohort's pathologies and without them the fit leaves their
-  /// orifice to the chordae (docs/studies.md, "The clip study": on 3 of the study's patients the
-  /// predicted EROA without a clip 8.8 -> 18.2 and 11.4 -> 22.8 mm^2 against a truth of 46.4 and
-  /// 24.1; the same on the other three looked at).
+  /// orifice to the chordae (docs/studies.md, "Why the fit includes the leaflets' moduli": of the
+  /// 5 study patients looked at, the predicted EROA without a clip 8.8 -> 18.2 and 11.4 -> 22.8
+  /// mm^2 on two, against a truth of 46.4 and 24.1, the same on the other three).
   std::string fit = "restlength,stiffness,pressure,modulus";
   inverse::FitMethod method = inverse::FitMethod::kBobyqa;
   int max_simulations = 50;
