@@ -299,7 +299,8 @@ void register_bench(CLI::App& app, Context& ctx) {
     cmd->footer(
         "Examples:\n"
         "  mvtwin bench closure --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
-        "--ref-set dt=0.005 --repeat 1 --json closure_small.json --ref-file ref_small.h5\n"
+        "--ref-set dt=0.005 --ref-set settle_mm=0.01 --repeat 1 --json closure_small.json "
+        "--ref-file ref_small.h5\n"
         "  mvtwin bench closure --json closure.json --ref-file closure_ref.h5   # long: the "
         "reference, once\n"
         "The timed run uses the paper's settings (ures = vres = 30, dt = 0.01 s) unless --set "
@@ -335,7 +336,8 @@ void register_bench(CLI::App& app, Context& ctx) {
     cmd->footer(
         "Examples:\n"
         "  mvtwin bench solvers --set ures=16 --set vres=8 --ref-set ures=20 --ref-set vres=10 "
-        "--ref-set dt=0.005 --tolerances 0.1 --json solvers_small.json --ref-file ref_small.h5   "
+        "--ref-set dt=0.005 --ref-set settle_mm=0.01 --tolerances 0.1 --json solvers_small.json "
+        "--ref-file ref_small.h5   "
         "# the reference above, reused\n"
         "  mvtwin bench solvers --json solvers.json --ref-file closure_ref.h5   # long\n"
         "The default patient's closure at the paper's settings with each linear solver: a\n"

@@ -61,7 +61,8 @@ void register_export_model(CLI::App& app, Context& ctx) {
                                  "Write the FE scene at end-diastole for ParaView and FEBio");
   cmd->footer(
       "Examples:\n  mvtwin export-model patient.h5 --out model/\n"
-      "  mvtwin export-model patient.h5 --out model40/ --set ures=40 --set clips=0.25,1,0.75,1\n"
+      "  mvtwin export-model patient.h5 --out model40/ --set ures=40 --set clips=0.25,1,0.75,1 "
+      "--no-guard-run\n"
       "Writes leaflets.vtu / leaflets_quadratic.vtu (tags, fibres, prescribed flags), "
       "chordae.vtp\n"
       "(rest lengths and laws), pressure_surface.vtp, boundary.csv (pressure profile, papillary\n"

@@ -99,7 +99,8 @@ void register_study_cohort(CLI::App* study, Context& ctx) {
   cmd->footer(
       "Examples:\n"
       "  mvtwin study cohort --quick --out cohort_quick/\n"
-      "  mvtwin study cohort --folder cohort_quick/observed/ --no-calibrate --out folder_study/\n"
+      "  mvtwin study cohort --folder cohort_quick/observed/ --no-calibrate --set ures=20 "
+      "--set vres=10 --out folder_study/\n"
       "  mvtwin study cohort --patients 25 --seed 2026 --out cohort25/   # long\n"
       "  mpirun -np 4 mvtwin study cohort --patients 100 --jobs 2 --out cohort100/\n"
       "  mvtwin study cohort --patients 10 --method ceres --cache obs/ --out cohort10_ceres/   "
