@@ -24,6 +24,7 @@
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/forward/model_vtk.h"
 #include "mvtwin/inverse/calibration.h"
+#include "mvtwin/inverse/outcome_uncertainty.h"
 #include "output_files.h"
 #include "report.h"
 
@@ -38,6 +39,7 @@ json nan_to_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); 
 }  // namespace
 
 json calibration_json(const CalibrationRecord& c) {
+  const Eigen::VectorXd in_bounds = inverse::bounded_sd(c);
   json par = json::array();
   for (size_t i = 0; i < c.names.size(); ++i) {
     const auto k = static_cast<Eigen::Index>(i);
@@ -46,6 +48,7 @@ json calibration_json(const CalibrationRecord& c) {
                    {"start", c.start[k]},
                    {"fitted", c.fitted[k]},
                    {"sd", nan_to_null(c.sd[k])},
+                   {"sd_in_bounds", nan_to_null(in_bounds[k])},
                    {"truth", nan_to_null(c.truth[k])},
                    {"error", nan_to_null(c.fitted[k] - c.truth[k])},
                    {"identified", c.identified[i] != 0},

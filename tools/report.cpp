@@ -10,6 +10,7 @@
 #include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/units.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/inverse/outcome_uncertainty.h"
 
 namespace mvtwin::tools {
 
@@ -237,15 +238,19 @@ void print_calibration(const CalibrationRecord& c, std::ostream& os) {
        << " of the simulations): " << fixed(c.search_error_before_mm, 3) << " -> "
        << fixed(c.search_error_after_mm, 3) << " mm there; " << c.refinement << "\n";
   }
-  os << "  parameter                                   start     fitted   +- sd      "
+  // sd: the data's alone; in bounds: with the parameter's bounds as a prior, what the clip
+  // plan's intervals use (inverse::bounded_sd).
+  const Eigen::VectorXd in_bounds = inverse::bounded_sd(c);
+  os << "  parameter                                   start     fitted   +- sd  in bounds     "
      << (c.synthetic ? "truth" : "") << "\n";
   for (size_t i = 0; i < c.names.size(); ++i) {
     const auto k = static_cast<Eigen::Index>(i);
     char line[256];
-    std::snprintf(line, sizeof line, "  %-40s %8s  %8s  %8s  %8s %s%s\n",
+    std::snprintf(line, sizeof line, "  %-40s %8s  %8s  %8s  %8s  %8s %s%s\n",
                   (c.names[i] + (c.units[i] == "1" ? "" : " [" + c.units[i] + "]")).c_str(),
                   fixed(c.start[k], 3).c_str(), fixed(c.fitted[k], 3).c_str(),
-                  fixed(c.sd[k], 3).c_str(), c.synthetic ? fixed(c.truth[k], 3).c_str() : "",
+                  fixed(c.sd[k], 3).c_str(), fixed(in_bounds[k], 3).c_str(),
+                  c.synthetic ? fixed(c.truth[k], 3).c_str() : "",
                   c.identified[i] ? "" : "  (not identified by the data)", "");
     os << line;
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Eigenvalues>
 
@@ -173,6 +174,21 @@ CalibrationPosterior posterior_of(const CalibrationRecord& r) {
   }
   post.usable = true;
   return post;
+}
+
+Eigen::VectorXd bounded_sd(const CalibrationRecord& r) {
+  const Eigen::Index n = static_cast<Eigen::Index>(r.names.size());
+  Eigen::VectorXd sd = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  if (n == 0 || r.covariance.rows() != n || r.covariance.cols() != n || !r.covariance.allFinite() ||
+      r.lower.size() != n || r.upper.size() != n)
+    return sd;
+  const Eigen::MatrixXd c = bounded_covariance(r.covariance, r.lower, r.upper);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    // Neither the data nor finite bounds limit it: unknown, not zero.
+    const bool bounded = std::isfinite(r.upper[i] - r.lower[i]) && r.upper[i] > r.lower[i];
+    if (bounded || c(i, i) > 0) sd[i] = std::sqrt(std::max(0.0, c(i, i)));
+  }
+  return sd;
 }
 
 }  // namespace mvtwin::inverse

@@ -1,6 +1,7 @@
 #include "mvtwin/inverse/outcome_uncertainty.h"
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -253,6 +254,32 @@ TEST(OutcomeUncertainty, ACalibrationRecordsPosteriorFollowsItsParameterNames) {
   const CalibrationPosterior none = posterior_of(r);
   EXPECT_FALSE(none.usable);
   EXPECT_NE(none.why_not.find("covariance"), std::string::npos);
+}
+
+TEST(OutcomeUncertainty, ACalibrationsBoundedSdsAreTheRangesSpreadWhereTheDataBarelySee) {
+  // The clip study's patient 6: a rest-length factor with an SD of 50 in [0.7, 1.6] beside a
+  // well-determined one (0.01 in [0.5, 1.5]) and one the data do not see at all.
+  CalibrationRecord r;
+  r.names = {"a", "b", "c"};
+  r.covariance = Eigen::Vector3d(50.0 * 50.0, 0.01 * 0.01, 0.0).asDiagonal();
+  r.lower = Eigen::Vector3d(0.7, 0.5, 0.2);
+  r.upper = Eigen::Vector3d(1.6, 1.5, 5.0);
+  const Eigen::VectorXd sd = bounded_sd(r);
+  ASSERT_EQ(sd.size(), 3);
+  // (1 / 50^2 + 12 / 0.9^2)^(-1/2): the range's 0.26, a little less.
+  EXPECT_NEAR(sd[0], 1.0 / std::sqrt(1.0 / 2500.0 + 12.0 / 0.81), 1e-9);
+  EXPECT_LT(sd[0], 0.9 / std::sqrt(12.0));
+  EXPECT_NEAR(sd[1], 0.01, 0.01 * 1e-3) << "the data's SD, kept";
+  EXPECT_NEAR(sd[2], 4.8 / std::sqrt(12.0), 1e-9) << "the range's spread";
+  // Neither the data nor bounds limit it: unknown.
+  r.lower[2] = -std::numeric_limits<double>::infinity();
+  EXPECT_TRUE(std::isnan(bounded_sd(r)[2]));
+  EXPECT_NEAR(bounded_sd(r)[1], 0.01, 1e-5);
+  // No covariance (or bounds of another size): nothing to say.
+  r.lower.resize(2);
+  EXPECT_TRUE(bounded_sd(r).array().isNaN().all());
+  r.covariance.resize(0, 0);
+  EXPECT_TRUE(bounded_sd(r).array().isNaN().all());
 }
 
 }  // namespace

@@ -87,4 +87,12 @@ struct CalibrationPosterior {
 };
 CalibrationPosterior posterior_of(const CalibrationRecord& record);
 
+/// Each fitted parameter's SD with its bounds as a prior (the square roots of
+/// bounded_covariance's diagonal), in the record's order: what the clip plan's intervals use,
+/// where the record's own `sd` is the data's alone (thousands of SDs for a parameter the data
+/// barely see, none for one they do not see). NaN for every parameter when the record holds no
+/// finite covariance or no bounds of its size, and for one that neither the data nor finite
+/// bounds limit.
+Eigen::VectorXd bounded_sd(const CalibrationRecord& record);
+
 }  // namespace mvtwin::inverse
