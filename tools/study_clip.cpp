@@ -28,7 +28,9 @@ int run_study_clip(const StudyClipArgs& args) {
   if (given("--min-eroa")) o.min_eroa_mm2 = args.min_eroa;
   if (given("--max-scanned")) o.max_scanned = args.max_scanned;
   if (given("--max-simulations")) o.max_simulations = args.max_simulations;
-  if (given("--fit") && !args.fit.empty()) o.fit = args.fit;
+  // Only when given (its default_val is for --help; CLI11 does not assign it): an empty --fit is
+  // then refused like calibrate's, not taken for "the default".
+  if (args.given.count("--fit")) o.fit = args.fit;
   o.seed = args.seed;
   if (!args.positions.empty()) o.positions = args.positions;
   if (!args.devices.empty()) o.devices = args.devices;

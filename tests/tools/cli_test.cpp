@@ -575,6 +575,9 @@ TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
   r = run("study clip --quick --fit restlength,leaflet_colour --out " + path("k"));
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("leaflet_colour"), std::string::npos) << r.err;
+  r = run("study clip --quick --fit \"\" --out " + path("k"));  // not the default in disguise
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("nothing chosen to fit"), std::string::npos) << r.err;
   r = run("study robustness --quick --set marginal_stiffness_scale=2 --out " + path("r"));
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("patient parameter"), std::string::npos) << r.err;
