@@ -12,6 +12,7 @@
 #include "mvtwin/core/atomic_file.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
+#include "progress.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -74,13 +75,15 @@ int run_cohort(const CohortArgs& a) {
       ++failed;
       entry["status"] = "failed";
       entry["error"] = e.what();
-      std::cerr << "\nmvtwin cohort: patient " << i << " failed: " << e.what() << "\n";
+      std::cerr << (stderr_is_tty() ? "\n" : "") << "mvtwin cohort: patient " << i
+                << " failed: " << e.what() << "\n";
     }
     manifest["patients"].push_back(entry);
-    std::cerr << "\r[cohort] " << (i + 1) << "/" << a.n << " (made " << made << ", kept " << kept
-              << ", failed " << failed << ")" << std::flush;
+    count_line("[cohort] " + std::to_string(i + 1) + "/" + std::to_string(a.n) + " (made " +
+                   std::to_string(made) + ", kept " + std::to_string(kept) + ", failed " +
+                   std::to_string(failed) + ")",
+               i + 1 == a.n);
   }
-  std::cerr << "\n";
   manifest["made"] = made;
   manifest["kept"] = kept;
   manifest["failed"] = failed;

@@ -39,4 +39,19 @@ inline std::function<void(double, double)> progress_line(const std::string& labe
   };
 }
 
+/// Writes one counted progress line on stderr ("[cohort] 3/25 (made 3, ...)"): rewritten in
+/// place on a terminal, one line each otherwise (a log gets lines, not "\r"-joined text).
+inline bool stderr_is_tty() {
+  static const bool tty = isatty(fileno(stderr)) != 0;
+  return tty;
+}
+
+inline void count_line(const std::string& text, bool last) {
+  if (stderr_is_tty())
+    std::fprintf(stderr, "\r%s%s", text.c_str(), last ? "\n" : "");
+  else
+    std::fprintf(stderr, "%s\n", text.c_str());
+  std::fflush(stderr);
+}
+
 }  // namespace mvtwin::tools

@@ -21,6 +21,7 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/detection/tee_renderer.h"
+#include "progress.h"
 #include "render_tee.h"
 
 namespace mvtwin::tools {
@@ -93,10 +94,10 @@ int run_render_tee(const RenderTeeArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   for (int f = 0; f < p.sequence.num_frames(); ++f) {
     volumes.push_back(detection::render_tee_frame(p.sequence, f, g, a.render));
-    std::cerr << "\r  frame " << f + 1 << "/" << p.sequence.num_frames() << std::flush;
+    count_line("  frame " + std::to_string(f + 1) + "/" + std::to_string(p.sequence.num_frames()),
+               f + 1 == p.sequence.num_frames());
   }
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::cerr << "\n";
   std::cout << "  " << s << " s (" << s / p.sequence.num_frames() << " s per volume)\n";
   p.images = volumes;
   // The file says what made its images (the patient's own provenance stays as it was).

@@ -248,6 +248,9 @@ TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
   CmdResult r = run("cohort --n 4 --seed 3 --out " + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
+  // Progress to a file (a log, CI) comes as one line per patient, not "\r"-joined.
+  EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("[cohort] 3/4 (made 3, kept 0, failed 0)\n"), std::string::npos) << r.err;
   const auto before = mvtwin::read_patient(path("c/patient_0002.h5"));
   fs::remove(dir_ / "c" / "patient_0001.h5");
   { std::ofstream(path("c/patient_0003.h5")) << "damaged"; }
