@@ -84,7 +84,7 @@ std::vector<std::array<int, 3>> delaunay_2d(const std::vector<Eigen::Vector2d>& 
            orient(p[v[2]], p[v[0]], q) >= 0;
   };
   index_edges();
-  std::unordered_map<int, char> state;  // 1 in the cavity's candidates, 2 forced, -1 excluded
+  std::unordered_map<int, char> state;  // per triangle: 2 forced into the cavity, -1 kept out
   std::vector<int> stack, cavity;
   int last = 0;
   for (int i = 0; i < n; ++i) {
