@@ -108,9 +108,18 @@ void add_fit_options(CLI::App* cmd, inverse::CalibrationOptions* co) {
                   "common rest-length offsets simulated before the optimizer starts")
       ->delimiter(',')
       ->default_str("-0.2,-0.1,0.1,0.2,0.3,0.4,0.5");
+  cmd->add_option("--modulus-scan", co->modulus_scan,
+                  "common multipliers of the leaflets' moduli simulated before the optimizer "
+                  "starts (when the moduli are fitted)")
+      ->delimiter(',')
+      ->default_str("0.5,1.5,2,3,4");
   cmd->add_flag_callback(
-      "--no-scan", [co] { co->restlength_scan.clear(); },
-      "start the optimizer at the defaults, without the scan");
+      "--no-scan",
+      [co] {
+        co->restlength_scan.clear();
+        co->modulus_scan.clear();
+      },
+      "start the optimizer at the defaults, without the scans");
 }
 
 int run_calibrate(const CalibrateArgs& a) {

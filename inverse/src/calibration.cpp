@@ -327,6 +327,9 @@ bool CalibrationOptions::is_valid(std::string* error) const {
   if (!(fd_step > 0)) return bad("fd_step must be positive");
   for (double d : restlength_scan)
     if (!std::isfinite(d)) return bad("rest-length scan offsets must be finite");
+  for (double m : modulus_scan)
+    if (!(std::isfinite(m) && m > 0))
+      return bad("modulus scan multipliers must be finite and positive");
   if (!std::isfinite(noise_mm)) return bad("noise_mm must be finite");
   if (std::string why; search_model && !search_model->is_valid(&why)) {
     *error = "the search model: " + why;
@@ -357,19 +360,49 @@ void search(ClosureObjective& objective, Tracker& tr, const CalibrationOptions& 
   if (!e0.ok) throw Error("calibrate: the start point cannot be simulated: " + e0.reason);
   r->error_before_mm = e0.mean_mm;
 
-  // Rest-length scan: a line of common offsets, all simulated at once; the optimizer starts
-  // from the best point on it.
-  std::vector<int> rest;
-  for (int i = 0; i < space.size(); ++i)
+  // Scans: a line of common rest-length offsets and (when the moduli are fitted) a line of
+  // common modulus multipliers, both from the start and simulated at once, then the best point
+  // of each line combined; the optimizer starts from the best of them and the start.
+  std::vector<int> rest, moduli;
+  for (int i = 0; i < space.size(); ++i) {
     if (space.specs()[i].group == "restlength") rest.push_back(i);
-  if (!rest.empty() && !o.restlength_scan.empty()) {
-    std::vector<Eigen::VectorXd> line;
+    if (space.specs()[i].group == "modulus") moduli.push_back(i);
+  }
+  std::vector<Eigen::VectorXd> line;
+  if (!rest.empty()) {
     for (double d : o.restlength_scan) {
       Eigen::VectorXd x = s.x0;
       for (int i : rest) x[i] = std::clamp(x[i] + d, space.lower()[i], space.upper()[i]);
       line.push_back(x);
     }
-    tr.evaluate_many(line);
+  }
+  const size_t rest_points = line.size();
+  if (!moduli.empty()) {
+    for (double m : o.modulus_scan) {
+      Eigen::VectorXd x = s.x0;
+      for (int i : moduli) x[i] = std::clamp(x[i] * m, space.lower()[i], space.upper()[i]);
+      line.push_back(x);
+    }
+  }
+  if (!line.empty()) {
+    const std::vector<Evaluation> es = tr.evaluate_many(line);
+    // The best of each line (where it beats the start), combined.
+    auto best_of = [&](size_t begin, size_t end) -> int {
+      int best = -1;
+      double err = e0.mean_mm;
+      for (size_t j = begin; j < end; ++j)
+        if (es[j].ok && es[j].mean_mm < err) {
+          err = es[j].mean_mm;
+          best = static_cast<int>(j);
+        }
+      return best;
+    };
+    const int br = best_of(0, rest_points), bm = best_of(rest_points, line.size());
+    if (br >= 0 && bm >= 0) {
+      Eigen::VectorXd x = line[static_cast<size_t>(br)];
+      for (int i : moduli) x[i] = line[static_cast<size_t>(bm)][i];
+      tr.evaluate(x);
+    }
     if (tr.best() < e0.mean_mm) {
       s.x0 = tr.best_x();
       s.zlo = (space.lower() - s.x0).cwiseQuotient(s.scale);
@@ -607,6 +640,12 @@ CalibrationRecord make_calibration_record(const CalibrationResult& r, const Pati
     scan += std::to_string(d);
   }
   c.options.emplace_back("fit_restlength_scan", scan.empty() ? "none" : scan);
+  std::string mscan;
+  for (double m : o.modulus_scan) {
+    if (!mscan.empty()) mscan += ',';
+    mscan += std::to_string(m);
+  }
+  c.options.emplace_back("fit_modulus_scan", mscan.empty() ? "none" : mscan);
   // The search model by its differences from the fit's model.
   std::string search = "none";
   if (r.search_simulations > 0 && o.search_model) {

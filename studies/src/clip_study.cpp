@@ -102,27 +102,29 @@ double ClipStudyOptions::option_position(int k) const {
 }
 
 json ClipStudyOptions::config() const {
-  return {{"seed", seed},
-          {"patients", patients},
-          {"min_eroa_mm2", min_eroa_mm2},
-          {"max_scanned", max_scanned},
-          {"truth_model", detail::describe(observation.simulation)},
-          {"observation_noise_mm", observation.noise_mm},
-          {"prediction_model", detail::describe(model)},
-          {"search_model", detail::describe(fit_model)},
-          {"defaults", detail::parameters_json(defaults)},
-          {"fit", fit},
-          {"method", inverse::fit_method_name(method)},
-          {"max_simulations", max_simulations},
-          {"devices", devices},
-          {"positions", positions},
-          {"diastole",
-           {{"transmitral_mmhg", diastole.transmitral_mmhg},
-            {"stroke_volume_ml", diastole.stroke_volume_ml},
-            {"filling_time_s", diastole.filling_time_s}}},
-          {"intervals", intervals},
-          // The intervals' mesh part (a folder made before it is refused, not mixed).
-          {"interval_mesh_factor", intervals ? json(inverse::MeshCheck{}.factor) : json(nullptr)}};
+  json c{{"seed", seed},
+         {"patients", patients},
+         {"min_eroa_mm2", min_eroa_mm2},
+         {"max_scanned", max_scanned},
+         {"truth_model", detail::describe(observation.simulation)},
+         {"observation_noise_mm", observation.noise_mm},
+         {"prediction_model", detail::describe(model)},
+         {"search_model", detail::describe(fit_model)},
+         {"defaults", detail::parameters_json(defaults)},
+         {"fit", fit},
+         {"method", inverse::fit_method_name(method)},
+         {"max_simulations", max_simulations},
+         {"devices", devices},
+         {"positions", positions},
+         {"diastole",
+          {{"transmitral_mmhg", diastole.transmitral_mmhg},
+           {"stroke_volume_ml", diastole.stroke_volume_ml},
+           {"filling_time_s", diastole.filling_time_s}}},
+         {"intervals", intervals},
+         // The intervals' mesh part (a folder made before it is refused, not mixed).
+         {"interval_mesh_factor", intervals ? json(inverse::MeshCheck{}.factor) : json(nullptr)}};
+  detail::add_calibration_scans(&c, fit);
+  return c;
 }
 
 json ClipStudyOption::to_json() const {

@@ -139,6 +139,7 @@ json CohortStudyOptions::config() const {
               {"method", inverse::fit_method_name(method)},
               {"max_simulations", max_simulations},
               {"fit_model", describe(fit_model)}});
+  if (calibrate) detail::add_calibration_scans(&c, fit);
   if (folder.empty()) {
     c.update({{"patients", patients},
               {"seed", seed},

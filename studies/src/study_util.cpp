@@ -10,6 +10,8 @@
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_settings.h"
+#include "mvtwin/inverse/calibration.h"
+#include "mvtwin/inverse/parameter_space.h"
 #include "mvtwin/studies/report.h"
 #include "mvtwin/studies/study_folder.h"
 
@@ -25,6 +27,15 @@ nlohmann::json parameters_json(const ValveParameters& p) {
   nlohmann::json j = nlohmann::json::object();
   p.for_each([&](const std::string& name, double v, const char*) { j[name] = v; });
   return j;
+}
+
+void add_calibration_scans(nlohmann::json* config, const std::string& fit) {
+  const inverse::ParameterSpace space(fit, ValveParameters{});
+  for (const auto& spec : space.specs())
+    if (spec.group == "modulus") {
+      (*config)["modulus_scan"] = inverse::CalibrationOptions{}.modulus_scan;
+      return;
+    }
 }
 
 Stats stats(const std::vector<double>& v) {

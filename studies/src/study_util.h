@@ -27,6 +27,11 @@ using mvtwin::seconds_since;
 nlohmann::json describe(const forward::ClosureOptions& o);
 /// Every parameter as name -> value.
 nlohmann::json parameters_json(const ValveParameters& p);
+/// Adds to a study's configuration the calibration's start scans that a fit of `fit` uses
+/// (inverse::CalibrationOptions' defaults) where they changed after studies were made with it:
+/// "modulus_scan" when the leaflets' moduli are fitted, so that a folder calibrated without it
+/// is refused.
+void add_calibration_scans(nlohmann::json* config, const std::string& fit);
 
 struct Stats {
   int n = 0;

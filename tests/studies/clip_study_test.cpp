@@ -216,3 +216,36 @@ TEST(ClipStudy, InvalidOptionsAreRefused) {
   EXPECT_FALSE(b.is_valid(&e));
   EXPECT_THROW(run_clip_study(b, *make_local_pool()), Error);
 }
+
+TEST(ClipStudy, AFolderCalibratedWithoutTheModulusScanIsRefused) {
+  // The calibration's modulus scan changes every fit of the moduli, so it is part of the
+  // configuration when they are fitted (and only then: the cohort studies that fit no modulus
+  // keep their folders).
+  ClipStudyOptions o;
+  ASSERT_NE(o.fit.find("modulus"), std::string::npos);
+  const nlohmann::json with = o.config();
+  ASSERT_TRUE(with.contains("modulus_scan"));
+  EXPECT_EQ(with["modulus_scan"].size(), 5u);
+  o.fit = "restlength";
+  EXPECT_FALSE(o.config().contains("modulus_scan"));
+  o.fit = "restlength,pl_modulus_scale";
+  EXPECT_TRUE(o.config().contains("modulus_scan"));
+
+  const fs::path dir =
+      fs::temp_directory_path() / ("mvtwin_clip_scan_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  nlohmann::json old{{"study", "clip-prediction"}, {"config", with}};
+  old["config"].erase("modulus_scan");
+  std::ofstream(dir / "study_config.json") << old.dump(1);
+  ClipStudyOptions again;
+  again.out = dir;
+  auto pool = make_local_pool();
+  try {
+    run_clip_study(again, *pool);
+    FAIL() << "a folder calibrated without the modulus scan was resumed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("modulus_scan"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}

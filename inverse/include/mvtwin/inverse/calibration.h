@@ -33,7 +33,7 @@ std::map<std::string, FitMethod> fit_methods_by_name();
 struct CalibrationOptions {
   FitMethod method = FitMethod::kBobyqa;
   int jobs = 2;  ///< simulations at once (TBB)
-  /// Budget up to the fit: the start, the rest-length scan, then the optimizer (NLopt: its
+  /// Budget up to the fit: the start, the scans, then the optimizer (NLopt: its
   /// evaluations; Ceres: iterations x (n + 1)); 50 fits 7 parameters in about 45 s here.
   int max_simulations = 50;
   /// Stop when a step changes every parameter by less than this many of its scales.
@@ -49,6 +49,15 @@ struct CalibrationOptions {
   /// them and the start. Local optimizers otherwise stall on valves far from the defaults,
   /// e.g. elongated chordae, trading the missing length for pressure. Empty: no scan.
   std::vector<double> restlength_scan = {-0.2, -0.1, 0.1, 0.2, 0.3, 0.4, 0.5};
+  /// When the leaflets' moduli are fitted: these common multipliers of both modulus scales from
+  /// the start, simulated in the same batch as the rest-length scan, then the best point of each
+  /// line combined (one more simulation); the optimizer starts from the best of all. Stiff
+  /// leaflets otherwise look like short chordae from the start: on the clip study's stiff
+  /// patient 4 the fit stopped at 0.82 mm (anterolateral marginal factor 0.77, moduli 0.64 /
+  /// 1.55) where the truth's parameters leave 0.34 (truth 1.01, moduli 2.04 / 2.87); a budget
+  /// of 150 instead of 50 converged to the same point (docs/calibration.md). Must be > 0.
+  /// Empty: no modulus scan.
+  std::vector<double> modulus_scan = {0.5, 1.5, 2.0, 3.0, 4.0};
   /// Observation noise SD for the covariance, mm; <= 0: the fit's residual RMS.
   double noise_mm = 0.0;
   /// A cheaper model to search with (the start, the scan and the optimizer run on it), for
