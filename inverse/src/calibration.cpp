@@ -634,18 +634,13 @@ CalibrationRecord make_calibration_record(const CalibrationResult& r, const Pati
   c.options.emplace_back("fit_error_tolerance", std::to_string(o.error_tolerance));
   c.options.emplace_back("fit_huber_mm", std::to_string(o.huber_mm));
   c.options.emplace_back("fit_fd_step", std::to_string(o.fd_step));
-  std::string scan;
-  for (double d : o.restlength_scan) {
-    if (!scan.empty()) scan += ',';
-    scan += std::to_string(d);
-  }
-  c.options.emplace_back("fit_restlength_scan", scan.empty() ? "none" : scan);
-  std::string mscan;
-  for (double m : o.modulus_scan) {
-    if (!mscan.empty()) mscan += ',';
-    mscan += std::to_string(m);
-  }
-  c.options.emplace_back("fit_modulus_scan", mscan.empty() ? "none" : mscan);
+  auto list = [](const std::vector<double>& v) {
+    std::string t;
+    for (double x : v) t += (t.empty() ? "" : ",") + std::to_string(x);
+    return t.empty() ? std::string("none") : t;
+  };
+  c.options.emplace_back("fit_restlength_scan", list(o.restlength_scan));
+  c.options.emplace_back("fit_modulus_scan", list(o.modulus_scan));
   // The search model by its differences from the fit's model.
   std::string search = "none";
   if (r.search_simulations > 0 && o.search_model) {

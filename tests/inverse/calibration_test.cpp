@@ -74,6 +74,19 @@ std::string marginal_restlengths() {
          std::string(kChordaeGroupNames[2]);
 }
 
+/// The scans' tests: `fitted` fitted from the defaults (the rest at the truth) on the exact
+/// small model, with a 30-simulation budget.
+ClosureObjective objective_from_defaults(const Patient& p, const std::string& fitted) {
+  return ClosureObjective(p, ParameterSpace(fitted, truth_with_defaults_for(p, fitted)),
+                          small_model());
+}
+CalibrationOptions scan_test_options() {
+  CalibrationOptions co;
+  co.max_simulations = 30;
+  co.step_tolerance = 0.02;
+  return co;
+}
+
 /// The unsettled small model (on 16 x 8 the settled end jumps with the rest lengths,
 /// docs/forward-status.md) and virtual patient 6 observed by it without noise: a patient whose
 /// marginal chordae both hold the closed valve on this model (+0.1 on either factor moves the
@@ -248,13 +261,9 @@ TEST(Calibration, RestLengthScanReachesElongatedChordae) {
   observe_with_the_calibration_model(&p);
   const std::string marginal = marginal_restlengths();
   const std::string fitted = marginal + ",peak_pressure";
-  ClosureObjective obj(p, ParameterSpace(fitted, truth_with_defaults_for(p, fitted)),
-                       small_model());
+  ClosureObjective obj = objective_from_defaults(p, fitted);
   const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
-  CalibrationOptions co;
-  co.max_simulations = 30;
-  co.step_tolerance = 0.02;
-  const CalibrationResult r = calibrate(obj, co);
+  const CalibrationResult r = calibrate(obj, scan_test_options());
   // The optimizer started on the scan line, nearer the truth than the defaults.
   EXPECT_LT((r.optimizer_start - truth).norm(), (r.start - truth).norm());
   EXPECT_GT(r.optimizer_start[0], r.start[0]);
@@ -284,12 +293,9 @@ TEST(Calibration, ModulusScanReachesStiffLeaflets) {
   p.truth->parameters.pl_modulus_scale = 3.0;
   observe_with_the_calibration_model(&p);
   const std::string fitted = marginal_restlengths() + ",al_modulus_scale,pl_modulus_scale";
-  ClosureObjective obj(p, ParameterSpace(fitted, truth_with_defaults_for(p, fitted)),
-                       small_model());
+  ClosureObjective obj = objective_from_defaults(p, fitted);
   const Eigen::VectorXd truth = obj.space().values_of(p.truth->parameters);
-  CalibrationOptions co;
-  co.max_simulations = 30;
-  co.step_tolerance = 0.02;
+  const CalibrationOptions co = scan_test_options();
   const CalibrationResult r = calibrate(obj, co);
   // The optimizer started where both moduli were multiplied alike, nearer the truth.
   EXPECT_GT(r.optimizer_start[2], 1.4 * r.start[2]);
@@ -304,8 +310,7 @@ TEST(Calibration, ModulusScanReachesStiffLeaflets) {
   // Without the modulus scan the same budget ends worse (measured: 0.50 mm against 0.12).
   CalibrationOptions without = co;
   without.modulus_scan.clear();
-  ClosureObjective obj2(p, ParameterSpace(fitted, truth_with_defaults_for(p, fitted)),
-                        small_model());
+  ClosureObjective obj2 = objective_from_defaults(p, fitted);  // its own cache
   const CalibrationResult r2 = calibrate(obj2, without);
   EXPECT_EQ(r2.optimizer_start[2], r2.start[2]) << "no modulus scan: the moduli start as given";
   EXPECT_LT(r.error_after_mm, r2.error_after_mm - 0.1);
