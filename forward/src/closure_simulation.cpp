@@ -19,9 +19,14 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// The closure of a built scene; wall_s counts from t_start (the scene's build included).
+/// The closure of a built scene; wall_s counts from t_start (the scene's build included). A
+/// failed clip phase is run again twice as long, at most kClipPhaseRetries times.
 ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& opt,
                              Clock::time_point t_start);
+
+/// One attempt; *clip_phase_failed says whether it stopped in the clip phase.
+ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt,
+                            Clock::time_point t_start, bool* clip_phase_failed);
 
 }  // namespace
 
@@ -50,6 +55,8 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("inversion_guard must be in [0, 1) (0: off)");
   if (!(clip_closing_s > 0 && clip_closing_s <= 100))
     return bad("clip_closing_s must be in (0, 100] s");
+  if (clip_phase_retries < 0 || clip_phase_retries > 4)
+    return bad("clip_phase_retries must be in 0..4");
   for (const ClipOptions& c : clips) {
     if (!(c.anterior_s >= 0 && c.anterior_s <= 1 && c.posterior_s >= 0 && c.posterior_s <= 1 &&
           c.anterior_t >= 0 && c.anterior_t <= 1 && c.posterior_t >= 0 && c.posterior_t <= 1))
@@ -100,6 +107,9 @@ std::string ClosureSummary::brief_report() const {
      << " reused the candidate list; " << interpenetrating_nodes << " of "
      << interpenetration_checked << " surface nodes inside the other leaflet; " << guarded_elements
      << " elements held by the inversion guard";
+  if (clip_phase_retries > 0)
+    os << "; the clip phase run " << clip_phase_retries + 1 << " times (" << clip_phase_s
+       << " s the last)";
   return os.str();
 }
 
@@ -118,6 +128,23 @@ namespace {
 
 ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& opt,
                              Clock::time_point t_start) {
+  ClosureOptions o = opt;
+  for (int retry = 0;; ++retry) {
+    bool clip_phase_failed = false;
+    ClosureResult r = simulate_once(scene, o, t_start, &clip_phase_failed);
+    r.summary.clip_phase_retries = retry;
+    if (!clip_phase_failed || retry >= opt.clip_phase_retries) {
+      if (retry > 0 && !r.summary.converged())
+        r.summary.reason += " (the clip phase run " + std::to_string(retry + 1) + " times, up to " +
+                            std::to_string(o.clip_closing_s) + " s long)";
+      return r;
+    }
+    o.clip_closing_s *= 2.0;  // the arms closing slower
+  }
+}
+
+ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt,
+                            Clock::time_point t_start, bool* clip_phase_failed) {
   ClosureIntegrator integrator(scene, opt);
   ClosureResult result;
   ValveState state = integrator.initial_state();
@@ -137,6 +164,7 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
     sum.settle_s = settle_s;
     sum.last_step_motion_mm = last_motion_mm;
     sum.orifice_s = orifice_s;
+    sum.clip_phase_s = integrator.clip_phase_s();
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
   };
@@ -169,6 +197,7 @@ ClosureResult simulate_scene(const ClosureScene& scene, const ClosureOptions& op
     const ValveState before = control.adaptive() ? state : ValveState{};
     if (const StepOutcome o = step_halving(tau, &h, &halvings); !o.ok()) {
       result.samples.push_back(integrator.sample(std::max(tau, 0.0), state));
+      *clip_phase_failed = tau < 0.0;
       finish(o.outcome, o.message + " at t = " + std::to_string(tau) + " s" +
                             (tau < 0 ? " (clip phase)" : "") + " (after " +
                             std::to_string(halvings) + " step halvings)");
@@ -279,6 +308,8 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"crossings", s.crossings},
                  {"settle_steps", s.settle_steps},
                  {"settle_s", s.settle_s},
+                 {"clip_phase_s", s.clip_phase_s},
+                 {"clip_phase_retries", s.clip_phase_retries},
                  {"last_step_motion_mm", s.last_step_motion_mm},
                  {"newton_iterations", s.newton_iterations},
                  {"dofs", s.dofs},

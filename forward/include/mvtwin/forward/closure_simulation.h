@@ -21,6 +21,9 @@ namespace mvtwin::forward {
 class ClosureScene;
 
 /// Options of a closure simulation (Mansi et al. 2012, Sec. 2.3). Units: s, t/mm^3, 1/s.
+/// Times a failed clip phase is run again, each twice as long as the last (ClosureOptions::clips).
+inline constexpr int kClipPhaseRetries = 2;
+
 struct ClosureOptions {
   ModelOptions model;
   /// Time step of the simulated (stretched) time, s: the paper's step, and with error-controlled
@@ -80,6 +83,12 @@ struct ClosureOptions {
   /// distance to their target; the closure then starts from the clipped valve.
   std::vector<ClipOptions> clips;
   double clip_closing_s = 0.5;
+  /// A clip phase that fails (a grasped node driven through a leaflet while the arms close) is
+  /// run again from end-diastole twice as long, at most this many times: arms closing slower
+  /// end where they would have (the clipped EROA moved by at most 0.1 mm^2 over 8 options that
+  /// close either way, docs/clip-devices.md), and a run that does not fail is unchanged to the
+  /// bit. Not a `--set` option (it changes no result that exists without it); 0 for tests.
+  int clip_phase_retries = kClipPhaseRetries;
   /// Called after every step of the closure with the simulated time and the duration (s).
   std::function<void(double t, double duration)> progress;
   /// Initial nodal velocities (3 per node of the model, mm/s; empty: at rest). Prescribed
@@ -152,6 +161,11 @@ struct ClosureSummary {
   double analyze_s = 0;          ///< part of factorize_s spent in the symbolic analysis
   double matrix_assembly_s = 0;  ///< part of assembly_s spent assembling the step matrix
   double orifice_s = 0;  ///< sampling the fine end surfaces and measuring the orifice (in other_s)
+  /// The clip phase's simulated length (0 without clips): clip_closing_s, or 2 or 4 times it
+  /// when it was run again after failing (clip_phase_retries times; their work is not counted
+  /// above, wall_s aside).
+  double clip_phase_s = 0;
+  int clip_phase_retries = 0;
 
   std::string brief_report() const;
 };
