@@ -175,14 +175,21 @@ TEST(DeviceClip, TheSettingRoundTripsWithItsDevice) {
   EXPECT_THROW(apply_option("clips=0.2,1,0.8,1,9.8,6", &back), Error) << "width without arm";
 }
 
+/// The XTW at the middle of the line on a small model (20 x 12): a clipped closure in about a
+/// second.
+ClosureOptions small_xtw_options() {
+  ClosureOptions o = device_options(clip_device("XTW"), 0.5);
+  o.model.ures = 20;
+  o.model.vres = 12;
+  return o;
+}
+
 TEST(DeviceClip, HoldsTheGraspedLeafletsTogetherThroughTheClosure) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "a closure takes minutes under AddressSanitizer; run in the -Werror build";
 #endif
   const Patient p = make_virtual_patient(1);
-  ClosureOptions o = device_options(clip_device("XTW"), 0.5);
-  o.model.ures = 20;
-  o.model.vres = 12;
+  const ClosureOptions o = small_xtw_options();
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   ASSERT_EQ(r.clip_grasps.size(), 1u);
@@ -214,9 +221,7 @@ TEST(DeviceClip, AClipPhaseThatFailsIsRunAgainSlowerAndEndsWhereASlowerOneDoes) 
   // node through the other leaflet on virtual patient 1 at 20 x 12; in 0.1 s they do not (found
   // by a sweep of the phase's length, the arms' stiffness and dt: this case fails first).
   const Patient p = make_virtual_patient(1);
-  ClosureOptions o = device_options(clip_device("XTW"), 0.5);
-  o.model.ures = 20;
-  o.model.vres = 12;
+  ClosureOptions o = small_xtw_options();
   o.clips[0].stiffness_n_per_mm *= 10.0;
   o.clip_closing_s = 0.05;
   auto run = [&](double closing_s, int retries) {
