@@ -4,12 +4,14 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 #include <tuple>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/forward/clip_device.h"
+#include "mvtwin/forward/closure_scene.h"
 #include "parallel_indices.h"
 
 namespace mvtwin::inverse {
@@ -93,12 +95,56 @@ ClosureQuality closure_quality(const forward::ClosureResult& r) {
   return q;
 }
 
+namespace {
+
+/// What decides a clipped valve's simulation: each clip's sites, width, spacer and stiffness, and
+/// the insertions it grasps. An arm caps the insertion and is used for nothing else, so two
+/// devices whose arms both hold all the tissue the leaflets insert grasp the same bands (NT and
+/// XT, NTW and XTW wherever the leaflets insert less than 9 mm): equal keys, the same simulation
+/// to the bit. A key that cannot be made (the insertion's geometry refused) is unique, so that the
+/// simulation itself reports why.
+std::string grasp_key(const ValveSequence& seq, const std::vector<ClipSite>& sites, size_t i) {
+  std::ostringstream k;
+  k.precision(17);
+  try {
+    for (const ClipSite& s : sites) {
+      forward::ClipOptions c = clip_options(s);
+      if (c.width_mm > 0)
+        std::tie(c.anterior_insertion_mm, c.posterior_insertion_mm) =
+            forward::clip_insertion_mm(seq, c);
+      k << c.anterior_s << ' ' << c.anterior_t << ' ' << c.posterior_s << ' ' << c.posterior_t
+        << ' ' << c.stiffness_n_per_mm << ' ' << c.width_mm << ' ' << c.spacer_mm << ' '
+        << c.anterior_insertion_mm << ' ' << c.posterior_insertion_mm << ';';
+    }
+  } catch (const std::exception&) {
+    return "#" + std::to_string(i);
+  }
+  return k.str();
+}
+
+}  // namespace
+
+std::vector<size_t> alike_clips(const ValveSequence& seq,
+                                const std::vector<std::vector<ClipSite>>& sites) {
+  std::map<std::string, size_t> seen;
+  std::vector<size_t> first(sites.size());
+  for (size_t i = 0; i < sites.size(); ++i)
+    first[i] = seen.emplace(grasp_key(seq, sites[i], i), i).first->second;
+  return first;
+}
+
 std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValveParameters& par,
                                          const forward::ClosureOptions& options,
                                          const std::vector<std::vector<ClipSite>>& candidates,
                                          int jobs) {
   std::vector<ClipScenario> out(candidates.size());
-  parallel_indices(candidates.size(), jobs, [&](size_t i) {
+  // A valve that two candidates clip alike is simulated once (grasp_key).
+  const std::vector<size_t> first = alike_clips(patient.sequence, candidates);
+  std::vector<size_t> unique;
+  for (size_t i = 0; i < candidates.size(); ++i)
+    if (first[i] == i) unique.push_back(i);
+  parallel_indices(unique.size(), jobs, [&](size_t u) {
+    const size_t i = unique[u];
     ClipScenario& sc = out[i];
     sc.sites = candidates[i];
     forward::ClosureOptions o = options;
@@ -112,6 +158,14 @@ std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValvePara
       sc.quality.reason = e.what();
     }
   });
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (first[i] == i) continue;
+    ClipScenario& sc = out[i];
+    sc.sites = candidates[i];
+    sc.quality = out[first[i]].quality;
+    for (size_t c = 0; c < sc.quality.clip_grasps.size() && c < sc.sites.size(); ++c)
+      sc.quality.clip_grasps[c].device = clip_options(sc.sites[c]).device;
+  }
   return out;
 }
 
@@ -119,8 +173,14 @@ void open_clips(const Patient& patient, const ValveParameters& par,
                 const forward::ClosureOptions& options, const forward::DiastoleOptions& diastole,
                 size_t count, int jobs, std::vector<ClipScenario>* scenarios) {
   const size_t n = std::min(count, scenarios->size());
-  parallel_indices(n, jobs, [&](size_t i) {
-    ClipScenario& sc = (*scenarios)[i];
+  std::vector<std::vector<ClipSite>> sites;
+  for (size_t i = 0; i < n; ++i) sites.push_back((*scenarios)[i].sites);
+  const std::vector<size_t> first = alike_clips(patient.sequence, sites);
+  std::vector<size_t> unique;
+  for (size_t i = 0; i < n; ++i)
+    if (first[i] == i) unique.push_back(i);
+  parallel_indices(unique.size(), jobs, [&](size_t u) {
+    ClipScenario& sc = (*scenarios)[unique[u]];
     forward::ClosureOptions o = options;
     o.progress = nullptr;
     o.clips.clear();
@@ -144,6 +204,8 @@ void open_clips(const Patient& patient, const ValveParameters& par,
       op.reason = e.what();
     }
   });
+  for (size_t i = 0; i < n; ++i)
+    if (first[i] != i) (*scenarios)[i].opening = (*scenarios)[first[i]].opening;
 }
 
 std::vector<std::vector<ClipSite>> clip_candidates(bool pairs,
@@ -296,16 +358,20 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient, const Calibration
   const size_t np = sp.points.size();
   // Every scenario (and the valve without a clip, first) at every sigma point, at once.
   // A scenario without a clip is that valve itself (opened in diastole when it is asked for).
+  // Scenarios that clip the valve alike (grasp_key) share a column.
   std::vector<std::vector<ClipSite>> sites{{}};
   std::vector<size_t> column(n, 0);
+  std::map<std::string, size_t> column_of;
   bool open_before = false;
   for (size_t i = 0; i < n; ++i) {
     if ((*scenarios)[i].sites.empty()) {
       open_before = true;
-    } else {
-      column[i] = sites.size();
-      sites.push_back((*scenarios)[i].sites);
+      continue;
     }
+    const auto [it, fresh] =
+        column_of.emplace(grasp_key(patient.sequence, (*scenarios)[i].sites, i), sites.size());
+    column[i] = it->second;
+    if (fresh) sites.push_back((*scenarios)[i].sites);
   }
   // Rows 0..np-1: the sigma points; row np (with the mesh check): the fitted parameters on the
   // refined mesh.

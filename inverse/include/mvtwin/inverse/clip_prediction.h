@@ -169,8 +169,17 @@ SigmaPoints propagate_clip_uncertainty(const Patient& patient,
 /// change of the difference on the refined mesh). False without it.
 bool indistinguishable(const SigmaPoints& sp, const ClipScenario& a, const ClipScenario& b);
 
-/// Simulates each set of sites (candidates `jobs` at a time) with the given parameters and
-/// options; a failed simulation is reported in its quality, never thrown.
+/// For each set of sites, the first of them that clips the valve alike: the same sites, widths,
+/// spacers and stiffnesses, and the same insertions grasped (an arm caps the insertion and does
+/// nothing else, so NT and XT, NTW and XTW grasp the same bands wherever the leaflets insert less
+/// than 9 mm). Alike sets simulate to the same bits; simulate_clips, open_clips and the intervals
+/// run each valve once.
+std::vector<size_t> alike_clips(const ValveSequence& sequence,
+                                const std::vector<std::vector<ClipSite>>& sites);
+
+/// Simulates each set of sites (candidates `jobs` at a time, each valve once: alike_clips) with
+/// the given parameters and options; a failed simulation is reported in its quality, never
+/// thrown.
 std::vector<ClipScenario> simulate_clips(const Patient& patient, const ValveParameters& parameters,
                                          const forward::ClosureOptions& options,
                                          const std::vector<std::vector<ClipSite>>& candidates,
