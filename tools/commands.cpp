@@ -15,6 +15,7 @@
 #include "phantom.h"
 #include "render_tee.h"
 #include "simulate.h"
+#include "tune_chordae.h"
 
 namespace mvtwin::tools {
 
@@ -26,6 +27,7 @@ void add_commands(CLI::App& app, Context& ctx) {
   register_export_model(app, ctx);
   register_simulate(app, ctx);
   register_distance(app, ctx);
+  register_tune_chordae(app, ctx);
   register_bench(app, ctx);
   register_calibrate(app, ctx);
   register_clip(app, ctx);

@@ -53,6 +53,7 @@ void register_phantom(CLI::App& app, Context& ctx) {
       "Examples:\n"
       "  mvtwin phantom --seed 1 --out patient.h5\n"
       "  mvtwin phantom --seed 7 --pathology functional_mr --out fmr.h5\n"
+      "  mvtwin phantom --seed 3 --pathology normal --out normal.h5\n"
       "  mvtwin phantom --seed 1 --simulate-closure --quick --out observed.h5\n"
       "  mvtwin phantom --seed 1 --simulate-closure --out observed_fine.h5   # long: a fine model\n"
       "Without --simulate-closure the closing frames have no leaflets (nothing to calibrate\n"

@@ -152,6 +152,27 @@ TEST_F(Cli, BadInputGivesAClearErrorAndNonZeroExit) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
+TEST_F(Cli, TuneChordaeRefusesWhatIsNotANormalVirtualValve) {
+  ASSERT_EQ(run("phantom --seed 2 --pathology functional_mr --out " + path("fmr.h5")).code, 0);
+  CmdResult r = run("tune-chordae " + path("fmr.h5") + " --out " + path("t.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("functional_mr valve's leak is its pathology"), std::string::npos) << r.err;
+  ASSERT_EQ(run("phantom --seed 2 --pathology normal --no-taut-chordae --out " + path("n.h5")).code,
+            0);
+  r = run("tune-chordae " + path("n.h5") + " --out " + path("t.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("no marginal chordae lengths"), std::string::npos) << r.err;
+  ASSERT_EQ(run("phantom --seed 2 --pathology normal --out " + path("n2.h5")).code, 0);
+  r = run("tune-chordae " + path("n2.h5") + " --out " + path("t.h5") + " --set pressure=3");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("pressure"), std::string::npos) << r.err;
+  r = run("tune-chordae " + path("n2.h5") + " --out " + path("t.h5") +
+          " --set peak_pressure_mmhg=60");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("hidden parameters"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("t.h5")));
+}
+
 TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
   ASSERT_EQ(run("phantom --seed 4 --out " + path("p.h5")).code, 0);
   // No observed closed valve (closing frames not simulated): named, nothing written.

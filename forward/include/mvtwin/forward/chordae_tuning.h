@@ -1,0 +1,61 @@
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mvtwin/core/valve_sequence.h"
+#include "mvtwin/forward/closure_simulation.h"
+
+namespace mvtwin::forward {
+
+/// How the marginal chordae of a valve are sized so that its simulated closure seals
+/// (docs/virtual-patients.md, "Chordae tuned to the simulated closure"): each iteration
+/// simulates the closure and, where a column of the closed valve is open (its gap to the other
+/// leaflet above the orifice's seal), lengthens the marginal chordae of its leaflet within
+/// `reach_sites` insertion sites if the other leaflet lies atrially of it (it must rise) and
+/// shortens them if ventricularly, by gain x (gap - seal, at most max_step_mm) x a tent weight
+/// over the sites. Every length stays within [shortest, longest] x its starting length.
+struct ChordaeTuningOptions {
+  ClosureOptions simulation;  ///< the model each iteration simulates (default: the paper's grid)
+  int iterations = 8;         ///< length updates (iterations + 1 closures)
+  double gain = 1.0;          ///< mm of length per mm of gap above the seal
+  double max_step_mm = 3.0;   ///< the gap above the seal counted at most
+  double reach_sites = 2.5;   ///< the tent's half-width, in insertion sites of 28
+  double shortest = 0.9;      ///< x the starting length
+  double longest = 1.3;       ///< x the starting length
+  /// Called after each closure with its index and EROA (NaN when it failed); may be empty.
+  std::function<void(int closure, double eroa_mm2)> progress;
+
+  /// What is wrong with the options ("" when nothing).
+  std::string problem() const;
+};
+
+/// What the tuning did.
+struct ChordaeTuning {
+  /// The lengths of the iteration whose closure had the smallest EROA (the starting lengths
+  /// when no iteration improved on them).
+  std::vector<ChordaLength> lengths;
+  /// Per closure (0: the starting lengths), its EROA, mm^2; NaN where it failed.
+  std::vector<double> eroa_mm2;
+  int best = 0;  ///< index into eroa_mm2 of `lengths`
+  /// Why a closure failed, "" when none did.
+  std::string failure;
+};
+
+/// The length changes of one iteration (mm, one per site of `lengths`) from the closed valve's
+/// orifice: open columns pull or push their leaflet's chordae as ChordaeTuningOptions says.
+/// `atrial` is the unit normal of the annulus plane towards the atrium.
+std::vector<double> chordae_length_changes(const RegurgitantOrifice& orifice,
+                                           const std::vector<ChordaLength>& lengths,
+                                           const Eigen::Vector3d& atrial,
+                                           const ChordaeTuningOptions& options);
+
+/// Tunes the marginal chordae lengths of `sequence` (which must have them) for the closure with
+/// `parameters`. Throws mvtwin::Error for a sequence without marginal chordae lengths or invalid
+/// options; a closure that fails ends the tuning with the best lengths found before it.
+ChordaeTuning tune_marginal_chordae(const ValveSequence& sequence,
+                                    const ValveParameters& parameters,
+                                    const ChordaeTuningOptions& options = {});
+
+}  // namespace mvtwin::forward

@@ -1,0 +1,89 @@
+// mvtwin tune-chordae (tools/tune_chordae.h).
+#include "tune_chordae.h"
+
+#include <cmath>
+#include <iostream>
+
+#include "exit_codes.h"
+#include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
+#include "mvtwin/forward/chordae_tuning.h"
+#include "mvtwin/forward/closure_settings.h"
+#include "report.h"
+
+namespace mvtwin::tools {
+
+int run_tune_chordae(const TuneChordaeArgs& a) {
+  refuse_overwrite(a.out, a.force);
+  Patient p = read_patient(a.file, false);
+  if (!p.synthetic || !p.truth) {
+    throw Error(a.file +
+                ": tune-chordae needs a virtual patient (its hidden parameters close the valve)");
+  }
+  if (p.truth->pathology != Pathology::kNormal) {
+    throw Error(a.file + ": a " + std::string(pathology_name(p.truth->pathology)) +
+                " valve's leak is its pathology; tune-chordae sizes a normal valve's chordae");
+  }
+  forward::ChordaeTuningOptions o;
+  o.iterations = a.iterations;
+  o.longest = a.longest;
+  for (const std::string& s : a.sets)
+    forward::apply_option(s, &o.simulation,
+                          "--set: tune-chordae simulates with the patient's hidden parameters");
+  const ValveParameters& par = p.truth->parameters;
+  std::cout << "tuning the marginal chordae of " << p.id << " [SYNTHETIC]: " << o.iterations
+            << " iterations at " << o.simulation.model.ures << " x " << o.simulation.model.vres
+            << ", lengths within " << o.shortest << "-" << o.longest << " x their own" << std::endl;
+  o.progress = [](int i, double eroa) {
+    std::cout << "  closure " << i << ": EROA "
+              << (std::isnan(eroa) ? std::string("failed") : fixed(eroa, 1) + " mm^2") << std::endl;
+  };
+  const forward::ChordaeTuning t = forward::tune_marginal_chordae(p.sequence, par, o);
+  if (!t.failure.empty()) std::cout << "  " << t.failure << "\n";
+  if (std::isnan(t.eroa_mm2[t.best])) {
+    std::cerr << "mvtwin tune-chordae: the first closure failed; nothing written\n";
+    return kExitFailed;
+  }
+  p.sequence.marginal_chordae_lengths = t.lengths;
+  p.truth->anatomy.emplace_back("chordae_tuning_iterations", t.best);
+  p.truth->anatomy.emplace_back("chordae_tuning_eroa_before_mm2", t.eroa_mm2.front());
+  p.truth->anatomy.emplace_back("chordae_tuning_eroa_mm2", t.eroa_mm2[t.best]);
+  p.provenance.command += "  |  " + a.command_line;
+  p.provenance.source += "; marginal chordae tuned to close (mvtwin tune-chordae)";
+  // The closing frames simulated before (if any) were made with the old chordae.
+  write_patient(a.out, p);
+  std::cout << "wrote " << a.out << ": EROA " << fixed(t.eroa_mm2.front(), 1) << " -> "
+            << fixed(t.eroa_mm2[t.best], 1) << " mm^2 at " << o.simulation.model.ures << " x "
+            << o.simulation.model.vres << " (the lengths of closure " << t.best << "; SYNTHETIC)\n";
+  return kExitOk;
+}
+
+void register_tune_chordae(CLI::App& app, Context& ctx) {
+  auto* cmd = app.add_subcommand(
+      "tune-chordae", "Size a normal virtual valve's marginal chordae so that it closes");
+  cmd->footer(
+      "Examples:\n"
+      "  mvtwin tune-chordae normal.h5 --out tuned.h5   # long: 9 closures, about a minute\n"
+      "  mvtwin tune-chordae normal.h5 --out tuned_quick.h5 --iterations 1 --set ures=16 --set "
+      "vres=8\n"
+      "Each iteration simulates the closure with the patient's hidden parameters and, where the\n"
+      "closed valve is open, lengthens or shortens the marginal chordae of the leaflet beside\n"
+      "the opening (docs/virtual-patients.md, \"Chordae tuned to the simulated closure\"). The\n"
+      "lengths of the closure with the smallest EROA are kept. The input's closing frames are\n"
+      "left as they were: simulate them again (mvtwin phantom --simulate-closure's model).");
+  auto a = std::make_shared<TuneChordaeArgs>();
+  cmd->add_option("FILE", a->file, "virtual patient file (normal pathology)")->required();
+  cmd->add_option("--out", a->out, "tuned patient file to write")->required();
+  cmd->add_flag("--force", a->force, "replace an existing --out");
+  cmd->add_option("--iterations", a->iterations, "length updates (iterations + 1 closures)")
+      ->default_val(8)
+      ->check(CLI::Range(0, 50));
+  cmd->add_option("--longest", a->longest, "each chorda at most this times its own length")
+      ->default_val(1.3)
+      ->check(CLI::Range(1.0, 5.0));
+  cmd->add_option("--set", a->sets,
+                  "name=value for the closures it simulates (default: the paper's grid)");
+  run_on_parse(cmd, ctx, a, run_tune_chordae);
+}
+
+}  // namespace mvtwin::tools
