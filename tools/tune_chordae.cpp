@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "exit_codes.h"
 #include "mvtwin/core/error.h"
@@ -23,6 +25,13 @@ int run_tune_chordae(const TuneChordaeArgs& a) {
   if (p.truth->pathology != Pathology::kNormal) {
     throw Error(a.file + ": a " + std::string(pathology_name(p.truth->pathology)) +
                 " valve's leak is its pathology; tune-chordae sizes a normal valve's chordae");
+  }
+  // Closing frames simulated with the chordae as they are would no longer be this valve's.
+  const ValveSequence& seq = p.sequence;
+  if (seq.first_closed >= 0 && seq.frames[seq.first_closed].la_surface) {
+    throw Error(a.file +
+                ": its closing frames were simulated with the chordae it has; tune a patient "
+                "made without --simulate-closure");
   }
   forward::ChordaeTuningOptions o;
   o.iterations = a.iterations;
@@ -45,12 +54,14 @@ int run_tune_chordae(const TuneChordaeArgs& a) {
     return kExitFailed;
   }
   p.sequence.marginal_chordae_lengths = t.lengths;
-  p.truth->anatomy.emplace_back("chordae_tuning_iterations", t.best);
-  p.truth->anatomy.emplace_back("chordae_tuning_eroa_before_mm2", t.eroa_mm2.front());
-  p.truth->anatomy.emplace_back("chordae_tuning_eroa_mm2", t.eroa_mm2[t.best]);
+  auto& anatomy = p.truth->anatomy;  // a second tuning replaces the first one's record
+  std::erase_if(anatomy, [](const auto& q) { return q.first.rfind("chordae_tuning_", 0) == 0; });
+  anatomy.emplace_back("chordae_tuning_iterations", t.best);
+  anatomy.emplace_back("chordae_tuning_eroa_before_mm2", t.eroa_mm2.front());
+  anatomy.emplace_back("chordae_tuning_eroa_mm2", t.eroa_mm2[t.best]);
   p.provenance.command += "  |  " + a.command_line;
-  p.provenance.source += "; marginal chordae tuned to close (mvtwin tune-chordae)";
-  // The closing frames simulated before (if any) were made with the old chordae.
+  const std::string tuned = "; marginal chordae tuned to close (mvtwin tune-chordae)";
+  if (p.provenance.source.find(tuned) == std::string::npos) p.provenance.source += tuned;
   write_patient(a.out, p);
   std::cout << "wrote " << a.out << ": EROA " << fixed(t.eroa_mm2.front(), 1) << " -> "
             << fixed(t.eroa_mm2[t.best], 1) << " mm^2 at " << o.simulation.model.ures << " x "
@@ -69,8 +80,9 @@ void register_tune_chordae(CLI::App& app, Context& ctx) {
       "Each iteration simulates the closure with the patient's hidden parameters and, where the\n"
       "closed valve is open, lengthens or shortens the marginal chordae of the leaflet beside\n"
       "the opening (docs/virtual-patients.md, \"Chordae tuned to the simulated closure\"). The\n"
-      "lengths of the closure with the smallest EROA are kept. The input's closing frames are\n"
-      "left as they were: simulate them again (mvtwin phantom --simulate-closure's model).");
+      "lengths of the closure with the smallest EROA are kept. A patient whose closing frames\n"
+      "were simulated (phantom --simulate-closure) is refused: they were made with its old "
+      "chordae.");
   auto a = std::make_shared<TuneChordaeArgs>();
   cmd->add_option("FILE", a->file, "virtual patient file (normal pathology)")->required();
   cmd->add_option("--out", a->out, "tuned patient file to write")->required();

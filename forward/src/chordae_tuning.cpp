@@ -5,8 +5,7 @@
 #include <limits>
 #include <sstream>
 
-#include <Eigen/SVD>
-
+#include "mvtwin/core/annulus_plane.h"
 #include "mvtwin/core/error.h"
 
 namespace mvtwin::forward {
@@ -19,22 +18,6 @@ constexpr int kInsertionSites = 28;  // the paper's marginal insertion sites
 double site_distance(double a, double b) {
   const double d = std::abs(a - b);
   return std::min(d, 1.0 - d);
-}
-
-/// Unit normal of the best-fit plane of the end-diastolic annulus, towards the atrium: the
-/// side away from the closed valve's free edge.
-Eigen::Vector3d atrial_normal(const ValveSequence& seq, const LeafletGrid& closed) {
-  const auto& annulus = seq.frames[seq.end_diastole].annulus;
-  const Eigen::RowVector3d centre = annulus.colwise().mean();
-  const Eigen::MatrixXd centred = annulus.rowwise() - centre;
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(centred, Eigen::ComputeThinV);
-  Eigen::Vector3d n = svd.matrixV().col(2);
-  const int U = closed.ures(), V = closed.vres();
-  Eigen::Vector3d edge = Eigen::Vector3d::Zero();
-  for (int u = 0; u < U; ++u) edge += closed.at(u, V - 1);
-  edge /= U;
-  if ((edge - centre.transpose()).dot(n) > 0) n = -n;
-  return n;
 }
 
 }  // namespace
@@ -99,6 +82,9 @@ ChordaeTuning tune_marginal_chordae(const ValveSequence& sequence,
   }
   ValveSequence seq = sequence;
   const std::vector<ChordaLength> start = sequence.marginal_chordae_lengths;
+  // The end-diastolic annulus does not move with the chordae: one plane for every iteration.
+  const Eigen::Vector3d atrial =
+      least_squares_plane(sequence.frames[sequence.end_diastole].annulus).normal;
   ChordaeTuning out;
   out.lengths = start;
   double best_eroa = std::numeric_limits<double>::infinity();
@@ -122,8 +108,8 @@ ChordaeTuning tune_marginal_chordae(const ValveSequence& sequence,
       out.lengths = seq.marginal_chordae_lengths;
     }
     if (it == options.iterations) break;
-    const std::vector<double> d = chordae_length_changes(
-        *r.orifice, seq.marginal_chordae_lengths, atrial_normal(seq, r.orifice_surface), options);
+    const std::vector<double> d =
+        chordae_length_changes(*r.orifice, seq.marginal_chordae_lengths, atrial, options);
     if (std::all_of(d.begin(), d.end(), [](double x) { return x == 0.0; })) break;  // sealed
     for (size_t j = 0; j < d.size(); ++j) {
       ChordaLength& c = seq.marginal_chordae_lengths[j];

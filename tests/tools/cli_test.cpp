@@ -170,7 +170,26 @@ TEST_F(Cli, TuneChordaeRefusesWhatIsNotANormalVirtualValve) {
           " --set peak_pressure_mmhg=60");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("hidden parameters"), std::string::npos) << r.err;
+  // Closing frames simulated with the old chordae would not be the tuned valve's.
+  ASSERT_EQ(
+      run("phantom --seed 2 --pathology normal --simulate-closure --quick --out " + path("obs.h5"))
+          .code,
+      0);
+  r = run("tune-chordae " + path("obs.h5") + " --out " + path("t.h5"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("closing frames were simulated"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(path("t.h5")));
+  // A tuned valve tuned again records the second tuning once, in place of the first.
+  const std::string quick = " --iterations 1 --set ures=16 --set vres=8";
+  ASSERT_EQ(run("tune-chordae " + path("n2.h5") + " --out " + path("t.h5") + quick).code, 0);
+  ASSERT_EQ(run("tune-chordae " + path("t.h5") + " --out " + path("t2.h5") + quick).code, 0);
+  const Patient twice = mvtwin::read_patient(path("t2.h5"), false);
+  int records = 0;
+  for (const auto& [name, value] : twice.truth->anatomy)
+    records += name == "chordae_tuning_eroa_mm2";
+  EXPECT_EQ(records, 1);
+  const std::string& source = twice.provenance.source;
+  EXPECT_EQ(source.find("tuned to close"), source.rfind("tuned to close")) << source;
 }
 
 TEST_F(Cli, CalibrateAndClipRefuseWhatTheyCannotUse) {
