@@ -13,6 +13,8 @@ struct CohortArgs : CommandArgs {
   std::uint64_t seed = 1;
   std::string out;  ///< directory
   VirtualPatientOptions patient;
+  /// Tune each normal patient's marginal chordae until its closure seals (forward/chordae_tuning.h)
+  bool tune_normal_chordae = true;
 };
 
 int run_cohort(const CohortArgs& args);

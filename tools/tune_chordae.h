@@ -12,7 +12,8 @@ struct TuneChordaeArgs : CommandArgs {
   std::string file;               ///< the patient file
   std::string out;                ///< the tuned patient file
   bool force = false;             ///< replace an existing --out
-  int iterations = 8;             ///< length updates
+  int iterations = 12;            ///< length updates
+  double shortest = 0.9;          ///< x each chorda's length at least
   double longest = 1.3;           ///< x each chorda's length at most
   std::vector<std::string> sets;  ///< name=value for the closures it simulates
 };

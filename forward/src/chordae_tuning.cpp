@@ -120,4 +120,58 @@ ChordaeTuning tune_marginal_chordae(const ValveSequence& sequence,
   return out;
 }
 
+int tuning_edition(const Patient& p) {
+  if (!p.truth) return 0;
+  bool tuned = false;
+  for (const auto& [quantity, v] : p.truth->anatomy) {
+    if (quantity == "chordae_tuning_edition") return static_cast<int>(v);
+    tuned = tuned || quantity == "chordae_tuning_eroa_mm2";
+  }
+  return tuned ? 1 : 0;
+}
+
+bool is_tunable_normal_valve(const Patient& p) {
+  const ValveSequence& seq = p.sequence;
+  const bool simulated = seq.first_closed >= 0 &&
+                         seq.frames[static_cast<size_t>(seq.first_closed)].la_surface.has_value();
+  return p.synthetic && p.truth && p.truth->pathology == Pathology::kNormal &&
+         !seq.marginal_chordae_lengths.empty() && !simulated;
+}
+
+ChordaeTuning tune_normal_virtual_patient(Patient* p, const ChordaeTuningOptions& options) {
+  if (!p->synthetic || !p->truth) {
+    throw Error("chordae tuning needs a virtual patient (its hidden parameters close the valve)");
+  }
+  if (p->truth->pathology != Pathology::kNormal) {
+    throw Error("a " + std::string(pathology_name(p->truth->pathology)) +
+                " valve's leak is its pathology; chordae tuning sizes a normal valve's chordae");
+  }
+  // Closing frames simulated with the chordae as they are would no longer be this valve's.
+  const ValveSequence& seq = p->sequence;
+  if (seq.first_closed >= 0 && seq.frames[static_cast<size_t>(seq.first_closed)].la_surface) {
+    throw Error(
+        "its closing frames were simulated with the chordae it has; tune a patient made "
+        "without them (mvtwin phantom without --simulate-closure)");
+  }
+  ChordaeTuning t = tune_marginal_chordae(p->sequence, p->truth->parameters, options);
+  if (std::isnan(t.eroa_mm2[static_cast<size_t>(t.best)])) return t;
+  p->sequence.marginal_chordae_lengths = t.lengths;
+  auto& anatomy = p->truth->anatomy;
+  std::erase_if(anatomy, [](const auto& q) { return q.first.rfind("chordae_tuning_", 0) == 0; });
+  anatomy.emplace_back("chordae_tuning_edition", kChordaeTuningEdition);
+  anatomy.emplace_back("chordae_tuning_iterations", t.best);
+  anatomy.emplace_back("chordae_tuning_eroa_before_mm2", t.eroa_mm2.front());
+  anatomy.emplace_back("chordae_tuning_eroa_mm2", t.eroa_mm2[static_cast<size_t>(t.best)]);
+  const std::string tuned = "; marginal chordae tuned to close (chordae tuning edition " +
+                            std::to_string(kChordaeTuningEdition) + ")";
+  // A second tuning replaces the first one's note (up to its closing parenthesis).
+  std::string& source = p->provenance.source;
+  if (const size_t at = source.find("; marginal chordae tuned to close"); at != std::string::npos) {
+    const size_t close = source.find(')', at);
+    source.erase(at, close == std::string::npos ? std::string::npos : close + 1 - at);
+  }
+  source += tuned;
+  return t;
+}
+
 }  // namespace mvtwin::forward

@@ -29,6 +29,12 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   if (!(opt.noise_mm >= 0 && opt.noise_mm < 5)) {
     throw Error("observed closure: noise must be in [0, 5) mm");
   }
+  if (opt.tune_normal_chordae && is_tunable_normal_valve(*p) &&
+      tuning_edition(*p) != kChordaeTuningEdition) {
+    const ChordaeTuning t = tune_normal_virtual_patient(p, opt.tuning);
+    if (std::isnan(t.eroa_mm2[static_cast<size_t>(t.best)]))
+      throw Error("observed closure of '" + p->id + "': tuning its chordae failed: " + t.failure);
+  }
   ValveSequence& seq = p->sequence;
   ClosureOptions o = opt.simulation;
   // Record often enough to find each frame's state (every 0.02 s of simulated time, i.e.

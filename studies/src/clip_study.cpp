@@ -16,6 +16,7 @@
 #include "mvtwin/core/table_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/forward/clip_device.h"
 #include "mvtwin/inverse/clip_prediction.h"
 #include "mvtwin/inverse/outcome_uncertainty.h"
@@ -83,6 +84,7 @@ ClipStudyOptions ClipStudyOptions::quick() {
   o.observation.simulation.model.ures = 20;
   o.observation.simulation.model.vres = 16;
   o.observation.simulation.dt = 0.01;
+  o.observation.tune_normal_chordae = false;  // 13 closures at 30 x 30 per normal valve
   o.model.model.ures = 16;
   o.model.model.vres = 12;
   o.model.dt = 0.02;
@@ -108,6 +110,8 @@ json ClipStudyOptions::config() const {
          {"max_scanned", max_scanned},
          {"truth_model", detail::describe(observation.simulation)},
          {"observation_noise_mm", observation.noise_mm},
+         {"normal_chordae_tuning",
+          observation.tune_normal_chordae ? json(forward::kChordaeTuningEdition) : json(nullptr)},
          {"prediction_model", detail::describe(model)},
          {"search_model", detail::describe(fit_model)},
          {"defaults", detail::parameters_json(defaults)},
@@ -243,7 +247,8 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
     return read_patient(file, false);
   };
   auto file_of = [&](const json& member) {
-    return detail::observed_file(cache, member.at("id").get<std::string>(), o.observation);
+    return detail::observed_file(cache, cohort_member(o.seed, member.at("index").get<int>()),
+                                 o.observation);
   };
 
   // Stage 1: the cohort's members observed in order (the fine model's closure is the truth

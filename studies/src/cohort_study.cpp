@@ -19,6 +19,7 @@
 #include "mvtwin/core/table_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/inverse/calibration.h"
 #include "mvtwin/inverse/closure_objective.h"
@@ -106,6 +107,7 @@ bool CohortStudyOptions::is_valid(std::string* error) const {
 forward::VirtualClosureOptions CohortStudyOptions::study_observation() {
   forward::VirtualClosureOptions v;
   v.simulation.dt = 0.005;
+  v.tune_normal_chordae = true;  // a healthy valve closes (docs/virtual-patients.md)
   return v;
 }
 
@@ -126,6 +128,7 @@ CohortStudyOptions CohortStudyOptions::quick() {
   o.observation.simulation.model.ures = 20;
   o.observation.simulation.model.vres = 16;
   o.observation.simulation.dt = 0.01;
+  o.observation.tune_normal_chordae = false;  // 13 closures at 30 x 30 per normal valve
   return o;
 }
 
@@ -141,10 +144,13 @@ json CohortStudyOptions::config() const {
               {"fit_model", describe(fit_model)}});
   if (calibrate) detail::add_calibration_scans(&c, fit);
   if (folder.empty()) {
-    c.update({{"patients", patients},
-              {"seed", seed},
-              {"observation_model", describe(observation.simulation)},
-              {"observation_noise_mm", observation.noise_mm}});
+    c.update(
+        {{"patients", patients},
+         {"seed", seed},
+         {"observation_model", describe(observation.simulation)},
+         {"observation_noise_mm", observation.noise_mm},
+         {"normal_chordae_tuning",
+          observation.tune_normal_chordae ? json(forward::kChordaeTuningEdition) : json(nullptr)}});
   } else {
     c["folder"] = fs::absolute(folder).lexically_normal().string();
   }
@@ -258,7 +264,7 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       char name[32];
       std::snprintf(name, sizeof name, "patient_%04d", i);
       entries.push_back({name, m.id, std::string(pathology_name(m.pathology)),
-                         detail::observed_file(cache, m.id, o.observation), true});
+                         detail::observed_file(cache, m, o.observation), true});
     }
   } else {
     const std::vector<fs::path> files = patient_files(o.folder);

@@ -9,6 +9,7 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/forward/closure_settings.h"
 #include "mvtwin/inverse/calibration.h"
 #include "mvtwin/inverse/parameter_space.h"
@@ -89,13 +90,16 @@ Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path
   return p;
 }
 
-std::filesystem::path observed_file(const std::filesystem::path& cache, const std::string& id,
+std::filesystem::path observed_file(const std::filesystem::path& cache, const CohortMember& member,
                                     const forward::VirtualClosureOptions& observation) {
   std::string description = "patients=" + std::to_string(kVirtualPatientEdition) +
                             " noise=" + std::to_string(observation.noise_mm);
+  // Only the normal valves change when tuned: the others keep the files made before.
+  if (observation.tune_normal_chordae && member.pathology == Pathology::kNormal)
+    description += " chordae_tuning=" + std::to_string(forward::kChordaeTuningEdition);
   for (const auto& [k, v] : forward::describe_result_options(observation.simulation))
     description += " " + k + "=" + v;
-  return cache / ("observed_" + id + "_" + cache_key(description) + ".h5");
+  return cache / ("observed_" + member.id + "_" + cache_key(description) + ".h5");
 }
 
 double ensure_observed(const std::filesystem::path& file, std::uint64_t seed, int index,

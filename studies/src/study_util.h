@@ -14,6 +14,7 @@
 #include "mvtwin/core/patient.h"
 #include "mvtwin/core/stopwatch.h"
 #include "mvtwin/core/valve_parameters.h"
+#include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/closure_simulation.h"
 #include "mvtwin/forward/virtual_closure.h"
 
@@ -55,9 +56,10 @@ std::string stats_text(const nlohmann::json& s, int digits = 2);
 Patient study_patient(std::uint64_t seed, int index, const std::filesystem::path& file,
                       ValveParameters* parameters);
 
-/// Where virtual patient `id`'s observed closure is cached in `cache`: named by the observation
-/// model, so that studies and runs with the same model share it.
-std::filesystem::path observed_file(const std::filesystem::path& cache, const std::string& id,
+/// Where cohort member `member`'s observed closure is cached in `cache`: named by the
+/// observation model (and, for a normal valve whose chordae the observation tunes, the tuning
+/// rule's edition), so that studies and runs with the same model share it.
+std::filesystem::path observed_file(const std::filesystem::path& cache, const CohortMember& member,
                                     const forward::VirtualClosureOptions& observation);
 /// Makes virtual patient `index` of cohort `seed` observed by `observation` into `file`, unless a
 /// readable file with its closed frame is already there (a damaged one is made again). Returns

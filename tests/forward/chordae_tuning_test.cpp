@@ -6,6 +6,7 @@
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/virtual_patient.h"
+#include "mvtwin/forward/virtual_closure.h"
 
 namespace mvtwin::forward {
 namespace {
@@ -93,25 +94,37 @@ TEST(ChordaeTuning, ANormalValvesOrificeShrinksAndTheKeptLengthsReproduceIt) {
   // Cohort seed 2026's patient 0 (normal) leaks 10 mm^2 on a coarse model.
   const Patient p = make_cohort_patient(2026, 0);
   ASSERT_EQ(p.truth->pathology, Pathology::kNormal);
+  ASSERT_TRUE(is_tunable_normal_valve(p));
+  EXPECT_EQ(tuning_edition(p), 0);
   ChordaeTuningOptions o;
   o.simulation.model.ures = 20;
   o.simulation.model.vres = 10;
   o.simulation.threads = 1;
   o.iterations = 2;
-  const ChordaeTuning t = tune_marginal_chordae(p.sequence, p.truth->parameters, o);
+  Patient tuned_patient = p;
+  const ChordaeTuning t = tune_normal_virtual_patient(&tuned_patient, o);
   ASSERT_EQ(t.eroa_mm2.size(), 3u) << t.failure;
   EXPECT_TRUE(t.failure.empty()) << t.failure;
   EXPECT_GT(t.eroa_mm2[0], 5.0) << "the untuned valve should leak on this model";
   EXPECT_LT(t.eroa_mm2[t.best], 0.6 * t.eroa_mm2[0]);
   for (double e : t.eroa_mm2) EXPECT_GE(e, t.eroa_mm2[t.best]);
-  // Lengths moved, each within [0.9, 1.3] x its own, at the same sites.
+  // The patient carries the kept lengths and says how they were made.
+  EXPECT_EQ(tuning_edition(tuned_patient), kChordaeTuningEdition);
+  double recorded = -1;
+  for (const auto& [name, value] : tuned_patient.truth->anatomy)
+    if (name == "chordae_tuning_eroa_mm2") recorded = value;
+  EXPECT_EQ(recorded, t.eroa_mm2[t.best]);
+  EXPECT_NE(tuned_patient.provenance.source.find("tuned to close"), std::string::npos);
+  // Lengths moved, each within [shortest, longest] x its own, at the same sites.
   const auto& start = p.sequence.marginal_chordae_lengths;
   ASSERT_EQ(t.lengths.size(), start.size());
+  ASSERT_EQ(tuned_patient.sequence.marginal_chordae_lengths.size(), start.size());
   double moved = 0;
   for (size_t j = 0; j < start.size(); ++j) {
     EXPECT_EQ(t.lengths[j].s, start[j].s);
-    EXPECT_GE(t.lengths[j].length_mm, 0.9 * start[j].length_mm - 1e-12);
-    EXPECT_LE(t.lengths[j].length_mm, 1.3 * start[j].length_mm + 1e-12);
+    EXPECT_EQ(tuned_patient.sequence.marginal_chordae_lengths[j].length_mm, t.lengths[j].length_mm);
+    EXPECT_GE(t.lengths[j].length_mm, o.shortest * start[j].length_mm - 1e-12);
+    EXPECT_LE(t.lengths[j].length_mm, o.longest * start[j].length_mm + 1e-12);
     moved += std::abs(t.lengths[j].length_mm - start[j].length_mm);
   }
   EXPECT_GT(moved, 1.0);
@@ -122,6 +135,63 @@ TEST(ChordaeTuning, ANormalValvesOrificeShrinksAndTheKeptLengthsReproduceIt) {
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   ASSERT_TRUE(r.orifice.has_value());
   EXPECT_DOUBLE_EQ(r.orifice->eroa_mm2, t.eroa_mm2[t.best]);
+}
+
+TEST(ChordaeTuning, OnlyNormalVirtualValvesAreTunedAndNothingIsChangedWhenRefused) {
+  Patient sick = make_cohort_patient(2026, 2);  // ruptured chordae
+  ASSERT_NE(sick.truth->pathology, Pathology::kNormal);
+  EXPECT_FALSE(is_tunable_normal_valve(sick));
+  const auto before = sick.sequence.marginal_chordae_lengths;
+  try {
+    tune_normal_virtual_patient(&sick);
+    ADD_FAILURE() << "a sick valve: expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("leak is its pathology"), std::string::npos) << e.what();
+  }
+  ASSERT_EQ(sick.sequence.marginal_chordae_lengths.size(), before.size());
+  for (size_t j = 0; j < before.size(); ++j)
+    EXPECT_EQ(sick.sequence.marginal_chordae_lengths[j].length_mm, before[j].length_mm);
+  Patient real = make_cohort_patient(2026, 0);
+  real.synthetic = false;
+  EXPECT_FALSE(is_tunable_normal_valve(real));
+  EXPECT_THROW(tune_normal_virtual_patient(&real), Error);
+  // A tuning made before editions were recorded counts as edition 1.
+  Patient old = make_cohort_patient(2026, 0);
+  old.truth->anatomy.emplace_back("chordae_tuning_eroa_mm2", 1.0);
+  EXPECT_EQ(tuning_edition(old), 1);
+}
+
+TEST(ChordaeTuning, AnObservedNormalValveIsTunedFirstAndASickOneIsNot) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "four closures take minutes under AddressSanitizer";
+#endif
+  VirtualClosureOptions v;
+  v.simulation = ClosureOptions{};
+  v.simulation.model.ures = 16;
+  v.simulation.model.vres = 8;
+  v.simulation.threads = 1;
+  v.noise_mm = 0;
+  v.tune_normal_chordae = true;
+  v.tuning.simulation = v.simulation;  // as the test above: 10 mm^2 shrinks on 20 x 10
+  v.tuning.simulation.model.ures = 20;
+  v.tuning.simulation.model.vres = 10;
+  v.tuning.iterations = 2;
+  Patient normal = make_cohort_patient(2026, 0);
+  const auto start = normal.sequence.marginal_chordae_lengths;
+  simulate_observed_closure(&normal, v);
+  EXPECT_EQ(tuning_edition(normal), kChordaeTuningEdition);
+  ASSERT_EQ(normal.sequence.marginal_chordae_lengths.size(), start.size());
+  double moved = 0;
+  for (size_t j = 0; j < start.size(); ++j)
+    moved += std::abs(normal.sequence.marginal_chordae_lengths[j].length_mm - start[j].length_mm);
+  EXPECT_GT(moved, 0.5);
+  ASSERT_TRUE(normal.truth->closed_orifice.has_value());
+  Patient sick = make_cohort_patient(2026, 1);
+  const auto sick_start = sick.sequence.marginal_chordae_lengths;
+  simulate_observed_closure(&sick, v);
+  EXPECT_EQ(tuning_edition(sick), 0);
+  for (size_t j = 0; j < sick_start.size(); ++j)
+    EXPECT_EQ(sick.sequence.marginal_chordae_lengths[j].length_mm, sick_start[j].length_mm);
 }
 
 TEST(ChordaeTuning, AValveWithoutChordaeLengthsAndBadOptionsAreRefused) {

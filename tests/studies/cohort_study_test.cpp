@@ -16,6 +16,7 @@
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/table_file.h"
+#include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/studies/scaling.h"
 #include "mvtwin/studies/work_pool.h"
 
@@ -314,6 +315,15 @@ TEST_F(CohortStudy, BadPatientFileIsRecordedAndTheOthersGoOn) {
   EXPECT_DOUBLE_EQ(
       r.patients[0].error_default_mm,
       read_json(v.out / "study.json")["patients"][0]["error_default_mm"].get<double>());
+}
+
+TEST(CohortStudyConfig, NormalValvesAreTunedByDefaultAndTheConfigSaysSo) {
+  const CohortStudyOptions full;
+  EXPECT_TRUE(full.observation.tune_normal_chordae);
+  EXPECT_EQ(full.config()["normal_chordae_tuning"], forward::kChordaeTuningEdition);
+  // The test size does not tune (13 closures at the paper's grid per normal valve).
+  EXPECT_FALSE(CohortStudyOptions::quick().observation.tune_normal_chordae);
+  EXPECT_TRUE(CohortStudyOptions::quick().config()["normal_chordae_tuning"].is_null());
 }
 
 TEST_F(CohortStudy, InvalidOptionsAreRefused) {

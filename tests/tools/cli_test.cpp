@@ -10,6 +10,7 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "mvtwin/core/nifti.h"
 #include "mvtwin/core/point_to_mesh_distance.h"
@@ -285,7 +286,9 @@ TEST_F(Cli, DetectionFromSyntheticTeeAndItsBenchmark) {
 }
 
 TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
-  CmdResult r = run("cohort --n 4 --seed 3 --out " + path("c"));
+  // Without tuning the normal valve (13 closures at 30 x 30: TuningTheNormalValvesOfACohort).
+  const std::string cohort = "cohort --n 4 --seed 3 --no-tune-normal-chordae --out ";
+  CmdResult r = run(cohort + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
   // Progress to a file (a log, CI) comes as one line per patient, not "\r"-joined.
@@ -294,7 +297,7 @@ TEST_F(Cli, CohortResumesAndSurvivesADamagedFile) {
   const auto before = mvtwin::read_patient(path("c/patient_0002.h5"));
   fs::remove(dir_ / "c" / "patient_0001.h5");
   { std::ofstream(path("c/patient_0003.h5")) << "damaged"; }
-  r = run("cohort --n 4 --seed 3 --out " + path("c"));
+  r = run(cohort + path("c"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 2, kept 2, failed 0"), std::string::npos) << r.out;
   EXPECT_NO_THROW(mvtwin::read_patient(path("c/patient_0003.h5")));
@@ -315,21 +318,71 @@ TEST_F(Cli, ClosingAnatomyOptionsAreRecordedAndACohortIsRemadeForThem) {
   r = run("phantom --seed 4 --no-taut-chordae --commissure-clearance 0 --out " + path("o.h5"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(mvtwin::read_patient(path("o.h5")).sequence.marginal_chordae_lengths.empty());
-  r = run("cohort --n 2 --seed 3 --no-taut-chordae --out " + path("c"));
+  // (The normal valve's tuning, 13 closures at 30 x 30, is TuningTheNormalValvesOfACohort's.)
+  const std::string untuned = " --no-tune-normal-chordae";
+  r = run("cohort --n 2 --seed 3 --no-taut-chordae --out " + path("c") + untuned);
   ASSERT_EQ(r.code, 0) << r.err;
-  r = run("cohort --n 2 --seed 3 --out " + path("c"));
+  r = run("cohort --n 2 --seed 3 --out " + path("c") + untuned);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("made 2, kept 0, failed 0"), std::string::npos) << r.out;
-  r = run("cohort --n 2 --seed 3 --taut-chordae --out " + path("c"));
+  r = run("cohort --n 2 --seed 3 --taut-chordae --out " + path("c") + untuned);
   EXPECT_NE(r.out.find("made 0, kept 2, failed 0"), std::string::npos) << r.out;
   EXPECT_FALSE(
       mvtwin::read_patient(path("c/patient_0001.h5")).sequence.marginal_chordae_lengths.empty());
-  r = run("cohort --n 2 --seed 3 --commissure-clearance 0 --out " + path("c"));
+  r = run("cohort --n 2 --seed 3 --commissure-clearance 0 --out " + path("c") + untuned);
   EXPECT_NE(r.out.find("made 2, kept 0, failed 0"), std::string::npos) << r.out;
   r = run("phantom --seed 4 --commissure-clearance -1 --out " + path("q.h5"));
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("--commissure-clearance"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "q.h5"));
+}
+
+/// The chordae tuning edition a patient records (0: none).
+int tuning_edition(const mvtwin::Patient& p) {
+  for (const auto& [name, value] : p.truth->anatomy)
+    if (name == "chordae_tuning_edition") return static_cast<int>(value);
+  return 0;
+}
+
+TEST_F(Cli, TuningTheNormalValvesOfACohort) {
+  // On the cohort's own grid (coarse here: a few seconds): patient 0 is normal, 1 is not.
+  const std::string coarse = "cohort --n 2 --seed 2026 --ures 16 --vres 8 --out ";
+  CmdResult r = run(coarse + path("plain") + " --no-tune-normal-chordae");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run(coarse + path("tuned"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("virtual-2026-0 (normal): chordae tuned, EROA"), std::string::npos) << r.out;
+  const mvtwin::Patient plain = mvtwin::read_patient(path("plain/patient_0000.h5"));
+  const mvtwin::Patient tuned = mvtwin::read_patient(path("tuned/patient_0000.h5"));
+  EXPECT_EQ(tuning_edition(plain), 0);
+  EXPECT_GE(tuning_edition(tuned), 2);
+  ASSERT_EQ(plain.sequence.marginal_chordae_lengths.size(),
+            tuned.sequence.marginal_chordae_lengths.size());
+  double moved = 0;
+  for (size_t j = 0; j < plain.sequence.marginal_chordae_lengths.size(); ++j)
+    moved += std::abs(plain.sequence.marginal_chordae_lengths[j].length_mm -
+                      tuned.sequence.marginal_chordae_lengths[j].length_mm);
+  EXPECT_GT(moved, 0.5);
+  // The sick valve is the generator's, to the bit.
+  const mvtwin::Patient sick_plain = mvtwin::read_patient(path("plain/patient_0001.h5"));
+  const mvtwin::Patient sick_tuned = mvtwin::read_patient(path("tuned/patient_0001.h5"));
+  for (size_t j = 0; j < sick_plain.sequence.marginal_chordae_lengths.size(); ++j)
+    EXPECT_EQ(sick_plain.sequence.marginal_chordae_lengths[j].length_mm,
+              sick_tuned.sequence.marginal_chordae_lengths[j].length_mm);
+  // The manifest says so; a rerun keeps both, and one without tuning remakes the normal valve.
+  std::ifstream mf(path("tuned/cohort.json"));
+  const nlohmann::json m = nlohmann::json::parse(mf);
+  EXPECT_EQ(m["tune_normal_chordae"], true);
+  EXPECT_EQ(m["chordae_tuning_edition"], tuning_edition(tuned));
+  EXPECT_TRUE(m["patients"][0].contains("chordae_tuning"));
+  EXPECT_FALSE(m["patients"][1].contains("chordae_tuning"));
+  EXPECT_LT(m["patients"][0]["chordae_tuning"]["eroa_mm2"].get<double>(),
+            m["patients"][0]["chordae_tuning"]["eroa_before_mm2"].get<double>());
+  r = run(coarse + path("tuned"));
+  EXPECT_NE(r.out.find("made 0, kept 2, failed 0"), std::string::npos) << r.out;
+  r = run(coarse + path("tuned") + " --no-tune-normal-chordae");
+  EXPECT_NE(r.out.find("made 1, kept 1, failed 0"), std::string::npos) << r.out;
+  EXPECT_EQ(tuning_edition(mvtwin::read_patient(path("tuned/patient_0000.h5"))), 0);
 }
 
 TEST_F(Cli, ImportRealSegmentation) {

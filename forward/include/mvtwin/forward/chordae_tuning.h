@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "mvtwin/core/patient.h"
 #include "mvtwin/core/valve_sequence.h"
 #include "mvtwin/forward/closure_simulation.h"
 
@@ -18,11 +19,11 @@ namespace mvtwin::forward {
 /// over the sites. Every length stays within [shortest, longest] x its starting length.
 struct ChordaeTuningOptions {
   ClosureOptions simulation;  ///< the model each iteration simulates (default: the paper's grid)
-  int iterations = 8;         ///< length updates (iterations + 1 closures)
+  int iterations = 12;        ///< length updates (iterations + 1 closures)
   double gain = 1.0;          ///< mm of length per mm of gap above the seal
   double max_step_mm = 3.0;   ///< the gap above the seal counted at most
   double reach_sites = 2.5;   ///< the tent's half-width, in insertion sites of 28
-  double shortest = 0.9;      ///< x the starting length
+  double shortest = 0.7;      ///< x the starting length
   double longest = 1.3;       ///< x the starting length
   /// Called after each closure with its index and EROA (NaN when it failed); may be empty.
   std::function<void(int closure, double eroa_mm2)> progress;
@@ -57,5 +58,29 @@ std::vector<double> chordae_length_changes(const RegurgitantOrifice& orifice,
 ChordaeTuning tune_marginal_chordae(const ValveSequence& sequence,
                                     const ValveParameters& parameters,
                                     const ChordaeTuningOptions& options = {});
+
+/// The tuning rule's edition: part of the key of anything made from tuned patients (the studies'
+/// observed closures), so that nothing made by an older rule is read as this one's.
+/// 1: lengths within 0.9-1.3 x their own (8560a4b); 2: within 0.7-1.3 (wide enough to close the
+/// commissural overlaps of valves like cohort seed 7's patient 0, docs/virtual-patients.md).
+inline constexpr int kChordaeTuningEdition = 2;
+
+/// Whether `patient` is a valve that tune_normal_virtual_patient tunes: a virtual patient of the
+/// normal pathology with marginal chordae lengths and no simulated closing frames.
+bool is_tunable_normal_valve(const Patient& patient);
+
+/// The chordae tuning edition recorded in a patient's anatomy (chordae_tuning_edition; 0 when
+/// it was never tuned, 1 for a tuning by 8560a4b-fd0163a, which recorded no edition).
+int tuning_edition(const Patient& patient);
+
+/// Tunes a normal virtual patient's marginal chordae in place with its hidden parameters
+/// (tune_marginal_chordae) and records it: chordae_tuning_iterations (the closure whose lengths
+/// were kept), chordae_tuning_eroa_before_mm2 and chordae_tuning_eroa_mm2 in its anatomy (a
+/// second tuning replaces the first one's) and a note in its provenance's source. Throws
+/// mvtwin::Error naming the problem for a patient that is not a normal virtual one, has no
+/// marginal chordae lengths, or whose closing frames were simulated (with the old chordae).
+/// When the first closure fails the patient is left as it was (the result's failure says why).
+ChordaeTuning tune_normal_virtual_patient(Patient* patient,
+                                          const ChordaeTuningOptions& options = {});
 
 }  // namespace mvtwin::forward

@@ -1,6 +1,7 @@
 #pragma once
 
 #include "mvtwin/core/patient.h"
+#include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/forward/closure_simulation.h"
 
 namespace mvtwin::forward {
@@ -14,6 +15,13 @@ struct VirtualClosureOptions {
   /// Detection-like noise: a smooth Gaussian field displacing the grid points (not the
   /// annulus) along the surface normal, mm (SD), drawn from the patient's seed.
   double noise_mm = 0.5;
+  /// Before the closure is observed, tune a normal virtual patient's marginal chordae until its
+  /// closure seals (tune_normal_virtual_patient at the paper's grid, as mvtwin cohort does: a
+  /// healthy valve closes; docs/virtual-patients.md). Other pathologies and patients already
+  /// tuned by this rule's edition are left as they are.
+  bool tune_normal_chordae = false;
+  /// How (the studies keep the default, which their caches' names assume).
+  ChordaeTuningOptions tuning;
 
   /// A finer model than the calibration default (ures = vres = 30, 1 layer, dt = 0.01 s):
   /// ures = vres = 40, 3 layers through the thickness, dt = 1e-3 s, linear systems solved
