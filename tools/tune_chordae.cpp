@@ -21,6 +21,8 @@ int run_tune_chordae(const TuneChordaeArgs& a) {
   forward::ChordaeTuningOptions o;
   o.iterations = a.iterations;
   o.shortest = a.shortest;
+  o.gain = a.gain;
+  o.reach_sites = a.reach_sites;
   o.longest = a.longest;
   for (const std::string& s : a.sets)
     forward::apply_option(s, &o.simulation,
@@ -73,8 +75,15 @@ void register_tune_chordae(CLI::App& app, Context& ctx) {
       ->default_val(12)
       ->check(CLI::Range(0, 50));
   cmd->add_option("--shortest", a->shortest, "each chorda at least this times its own length")
-      ->default_val(0.9)
+      ->default_val(0.7)
       ->check(CLI::Range(0.3, 1.0));
+  cmd->add_option("--gain", a->gain, "mm of length per mm of gap above the seal")
+      ->default_val(1.0)
+      ->check(CLI::Range(0.05, 10.0));
+  cmd->add_option("--reach", a->reach_sites,
+                  "chordae moved around an open column, insertion sites (of 28) to either side")
+      ->default_val(2.5)
+      ->check(CLI::Range(0.5, 14.0));
   cmd->add_option("--longest", a->longest, "each chorda at most this times its own length")
       ->default_val(1.3)
       ->check(CLI::Range(1.0, 5.0));

@@ -13,7 +13,9 @@ struct TuneChordaeArgs : CommandArgs {
   std::string out;                ///< the tuned patient file
   bool force = false;             ///< replace an existing --out
   int iterations = 12;            ///< length updates
-  double shortest = 0.9;          ///< x each chorda's length at least
+  double shortest = 0.7;          ///< x each chorda's length at least
+  double gain = 1.0;              ///< mm of length per mm of gap above the seal
+  double reach_sites = 2.5;       ///< the rule's half-width, insertion sites of 28
   double longest = 1.3;           ///< x each chorda's length at most
   std::vector<std::string> sets;  ///< name=value for the closures it simulates
 };
