@@ -1,8 +1,6 @@
 // mvtwin cohort (tools/cohort.h).
 #include "cohort.h"
 
-#include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -16,7 +14,6 @@
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/forward/chordae_tuning.h"
 #include "progress.h"
-#include "report.h"
 
 namespace mvtwin::tools {
 namespace fs = std::filesystem;
@@ -76,28 +73,14 @@ int run_cohort(const CohortArgs& a) {
         VirtualPatientOptions o = a.patient;
         o.command = a.command_line + "  [patient " + std::to_string(i) + "]";
         p = make_cohort_patient(a.seed, i, o);
-        if (tune) {
-          // On the patient's own grid (the paper's 30 x 30 by default), its hidden parameters.
-          forward::ChordaeTuningOptions t;
-          t.simulation.model.ures = a.patient.ures;
-          t.simulation.model.vres = a.patient.vres;
-          const auto t0 = std::chrono::steady_clock::now();
-          const forward::ChordaeTuning r = forward::tune_normal_virtual_patient(&p, t);
-          const double secs =
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-          const double before = r.eroa_mm2.front(), after = r.eroa_mm2[r.best];
-          if (std::isnan(after)) throw Error("tuning its chordae: " + r.failure);
-          entry["chordae_tuning"] = {{"eroa_before_mm2", before},
-                                     {"eroa_mm2", after},
-                                     {"closures", r.eroa_mm2.size()},
-                                     {"kept_closure", r.best},
-                                     {"s", secs}};
-          std::cout << (stderr_is_tty() ? "\n" : "") << "[cohort] " << p.id
-                    << " (normal): chordae tuned, EROA " << fixed(before, 1) << " -> "
-                    << fixed(after, 1) << " mm^2 at " << a.patient.ures << " x " << a.patient.vres
-                    << " (" << r.eroa_mm2.size() << " closures, " << fixed(secs, 0) << " s)"
-                    << std::endl;
-        }
+        // On the patient's own grid (the paper's 30 x 30 by default), its hidden parameters.
+        const NormalTuning t = tune_normal_if_asked(&p, tune, a.patient.ures, a.patient.vres);
+        if (t.tuned)
+          entry["chordae_tuning"] = {{"eroa_before_mm2", t.eroa_before_mm2},
+                                     {"eroa_mm2", t.eroa_mm2},
+                                     {"closures", t.closures},
+                                     {"kept_closure", t.kept},
+                                     {"s", t.seconds}};
         write_patient(path, p);
         ++made;
         entry["status"] = "made";
@@ -151,9 +134,7 @@ void register_cohort(CLI::App& app, Context& ctx) {
   cmd->add_option("--out", a->out, "output directory")->required();
   add_grid_options(cmd, a->patient.ures, a->patient.vres);
   add_closing_anatomy_options(cmd, a->patient);
-  cmd->add_flag("--tune-normal-chordae,!--no-tune-normal-chordae", a->tune_normal_chordae,
-                "size each normal valve's marginal chordae until its closure seals (the default; "
-                "docs/virtual-patients.md)");
+  add_tune_normal_option(cmd, a->tune_normal_chordae);
   run_on_parse(cmd, ctx, a, run_cohort);
 }
 

@@ -1,12 +1,16 @@
 // What every command shares (tools/command.h).
 #include "command.h"
 
+#include <chrono>
+#include <cmath>
 #include <iostream>
 #include <utility>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/version.h"
+#include "mvtwin/forward/chordae_tuning.h"
+#include "progress.h"
 #include "report.h"
 
 namespace mvtwin::tools {
@@ -56,6 +60,35 @@ void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o) {
                   "from itself, mm (0: hanging vertically, as before the closing anatomy)")
       ->default_val(o.commissure_clearance_mm)
       ->check(CLI::Range(0.0, 10.0));
+}
+
+void add_tune_normal_option(CLI::App* cmd, bool& tune) {
+  cmd->add_flag("--tune-normal-chordae,!--no-tune-normal-chordae", tune,
+                "size a normal valve's marginal chordae until its closure seals (the default: "
+                "a healthy valve closes; 13 closures on the patient's grid, about 40 s at 30 x 30; "
+                "docs/virtual-patients.md)");
+}
+
+NormalTuning tune_normal_if_asked(Patient* p, bool tune, int ures, int vres) {
+  NormalTuning out;
+  if (!tune || !forward::is_tunable_normal_valve(*p)) return out;
+  forward::ChordaeTuningOptions o;
+  o.simulation.model.ures = ures;
+  o.simulation.model.vres = vres;
+  const auto t0 = std::chrono::steady_clock::now();
+  const forward::ChordaeTuning r = forward::tune_normal_virtual_patient(p, o);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.eroa_before_mm2 = r.eroa_mm2.front();
+  out.eroa_mm2 = r.eroa_mm2[static_cast<size_t>(r.best)];
+  if (std::isnan(out.eroa_mm2)) throw Error("tuning its chordae: " + r.failure);
+  out.tuned = true;
+  out.closures = static_cast<int>(r.eroa_mm2.size());
+  out.kept = r.best;
+  std::cout << (stderr_is_tty() ? "\n" : "") << p->id << " (normal): chordae tuned, EROA "
+            << fixed(out.eroa_before_mm2, 1) << " -> " << fixed(out.eroa_mm2, 1) << " mm^2 at "
+            << ures << " x " << vres << " (" << out.closures << " closures, "
+            << fixed(out.seconds, 0) << " s)" << std::endl;
+  return out;
 }
 
 }  // namespace mvtwin::tools

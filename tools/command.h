@@ -65,5 +65,18 @@ void add_grid_options(CLI::App* cmd, int& ures, int& vres);
 /// --taut-chordae / --no-taut-chordae and --commissure-clearance (VirtualPatientOptions: the
 /// closing anatomy, on by default).
 void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o);
+/// --tune-normal-chordae / --no-tune-normal-chordae (on by default).
+void add_tune_normal_option(CLI::App* cmd, bool& tune);
+
+/// What tuning a normal virtual valve's chordae did (tune_normal_if_asked).
+struct NormalTuning {
+  bool tuned = false;  ///< false: not asked, not a normal virtual valve with chordae lengths
+  double eroa_before_mm2 = 0, eroa_mm2 = 0, seconds = 0;
+  int closures = 0, kept = 0;
+};
+/// With `tune`, sizes the marginal chordae of `p` when it is a normal virtual valve
+/// (forward::tune_normal_virtual_patient) on a ures x vres model, printing one line. Throws
+/// mvtwin::Error when the tuning's first closure fails.
+NormalTuning tune_normal_if_asked(Patient* p, bool tune, int ures, int vres);
 
 }  // namespace mvtwin::tools

@@ -21,6 +21,9 @@ struct PhantomArgs : CommandArgs {
   bool quick = false;
   std::vector<std::string> closure_sets;  ///< name=value for that simulation
   double noise_mm = 0.5;
+  /// Tune a normal valve's marginal chordae until its closure seals (on the patient's grid;
+  /// with --quick on the quick closure's).
+  bool tune_normal_chordae = true;
 };
 
 int run_phantom(const PhantomArgs& args);

@@ -163,7 +163,11 @@ TEST_F(Cli, TuneChordaeRefusesWhatIsNotANormalVirtualValve) {
   r = run("tune-chordae " + path("n.h5") + " --out " + path("t.h5"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("no marginal chordae lengths"), std::string::npos) << r.err;
-  ASSERT_EQ(run("phantom --seed 2 --pathology normal --out " + path("n2.h5")).code, 0);
+  // The generator's lengths (tune-chordae is what this test runs; phantom would tune them too).
+  ASSERT_EQ(
+      run("phantom --seed 2 --pathology normal --no-tune-normal-chordae --out " + path("n2.h5"))
+          .code,
+      0);
   r = run("tune-chordae " + path("n2.h5") + " --out " + path("t.h5") + " --set pressure=3");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("pressure"), std::string::npos) << r.err;
@@ -383,6 +387,15 @@ TEST_F(Cli, TuningTheNormalValvesOfACohort) {
   r = run(coarse + path("tuned") + " --no-tune-normal-chordae");
   EXPECT_NE(r.out.find("made 1, kept 1, failed 0"), std::string::npos) << r.out;
   EXPECT_EQ(tuning_edition(mvtwin::read_patient(path("tuned/patient_0000.h5"))), 0);
+  // A normal phantom too (--quick: tuned on the quick closure's 20 x 10), unless told not to.
+  r = run("phantom --seed 2 --pathology normal --quick --out " + path("q.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(normal): chordae tuned, EROA"), std::string::npos) << r.out;
+  EXPECT_GE(tuning_edition(mvtwin::read_patient(path("q.h5"))), 2);
+  r = run("phantom --seed 2 --pathology normal --quick --no-tune-normal-chordae --out " +
+          path("u.h5"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(tuning_edition(mvtwin::read_patient(path("u.h5"))), 0);
 }
 
 TEST_F(Cli, ImportRealSegmentation) {
