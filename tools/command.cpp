@@ -79,7 +79,7 @@ NormalTuning tune_normal_if_asked(Patient* p, bool tune, int ures, int vres) {
   const forward::ChordaeTuning r = forward::tune_normal_virtual_patient(p, o);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.eroa_before_mm2 = r.eroa_mm2.front();
-  out.eroa_mm2 = r.eroa_mm2[static_cast<size_t>(r.best)];
+  out.eroa_mm2 = r.kept_eroa_mm2();
   if (std::isnan(out.eroa_mm2)) throw Error("tuning its chordae: " + r.failure);
   out.tuned = true;
   out.closures = static_cast<int>(r.eroa_mm2.size());

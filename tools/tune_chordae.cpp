@@ -41,14 +41,14 @@ int run_tune_chordae(const TuneChordaeArgs& a) {
     throw Error(a.file + ": " + e.what());
   }
   if (!t.failure.empty()) std::cout << "  " << t.failure << "\n";
-  if (std::isnan(t.eroa_mm2[t.best])) {
+  if (std::isnan(t.kept_eroa_mm2())) {
     std::cerr << "mvtwin tune-chordae: the first closure failed; nothing written\n";
     return kExitFailed;
   }
   p.provenance.command += "  |  " + a.command_line;
   write_patient(a.out, p);
   std::cout << "wrote " << a.out << ": EROA " << fixed(t.eroa_mm2.front(), 1) << " -> "
-            << fixed(t.eroa_mm2[t.best], 1) << " mm^2 at " << o.simulation.model.ures << " x "
+            << fixed(t.kept_eroa_mm2(), 1) << " mm^2 at " << o.simulation.model.ures << " x "
             << o.simulation.model.vres << " (the lengths of closure " << t.best << "; SYNTHETIC)\n";
   return kExitOk;
 }

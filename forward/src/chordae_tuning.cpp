@@ -131,11 +131,8 @@ int tuning_edition(const Patient& p) {
 }
 
 bool is_tunable_normal_valve(const Patient& p) {
-  const ValveSequence& seq = p.sequence;
-  const bool simulated = seq.first_closed >= 0 &&
-                         seq.frames[static_cast<size_t>(seq.first_closed)].la_surface.has_value();
   return p.synthetic && p.truth && p.truth->pathology == Pathology::kNormal &&
-         !seq.marginal_chordae_lengths.empty() && !simulated;
+         !p.sequence.marginal_chordae_lengths.empty() && !p.sequence.has_closed_leaflets();
 }
 
 ChordaeTuning tune_normal_virtual_patient(Patient* p, const ChordaeTuningOptions& options) {
@@ -147,21 +144,20 @@ ChordaeTuning tune_normal_virtual_patient(Patient* p, const ChordaeTuningOptions
                 " valve's leak is its pathology; chordae tuning sizes a normal valve's chordae");
   }
   // Closing frames simulated with the chordae as they are would no longer be this valve's.
-  const ValveSequence& seq = p->sequence;
-  if (seq.first_closed >= 0 && seq.frames[static_cast<size_t>(seq.first_closed)].la_surface) {
+  if (p->sequence.has_closed_leaflets()) {
     throw Error(
         "its closing frames were simulated with the chordae it has; tune a patient made "
         "without them (mvtwin phantom without --simulate-closure)");
   }
   ChordaeTuning t = tune_marginal_chordae(p->sequence, p->truth->parameters, options);
-  if (std::isnan(t.eroa_mm2[static_cast<size_t>(t.best)])) return t;
+  if (std::isnan(t.kept_eroa_mm2())) return t;
   p->sequence.marginal_chordae_lengths = t.lengths;
   auto& anatomy = p->truth->anatomy;
   std::erase_if(anatomy, [](const auto& q) { return q.first.rfind("chordae_tuning_", 0) == 0; });
   anatomy.emplace_back("chordae_tuning_edition", kChordaeTuningEdition);
   anatomy.emplace_back("chordae_tuning_iterations", t.best);
   anatomy.emplace_back("chordae_tuning_eroa_before_mm2", t.eroa_mm2.front());
-  anatomy.emplace_back("chordae_tuning_eroa_mm2", t.eroa_mm2[static_cast<size_t>(t.best)]);
+  anatomy.emplace_back("chordae_tuning_eroa_mm2", t.kept_eroa_mm2());
   const std::string tuned = "; marginal chordae tuned to close (chordae tuning edition " +
                             std::to_string(kChordaeTuningEdition) + ")";
   // A second tuning replaces the first one's note (up to its closing parenthesis).

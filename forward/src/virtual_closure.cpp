@@ -32,7 +32,7 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   if (opt.tune_normal_chordae && is_tunable_normal_valve(*p) &&
       tuning_edition(*p) != kChordaeTuningEdition) {
     const ChordaeTuning t = tune_normal_virtual_patient(p, opt.tuning);
-    if (std::isnan(t.eroa_mm2[static_cast<size_t>(t.best)]))
+    if (std::isnan(t.kept_eroa_mm2()))
       throw Error("observed closure of '" + p->id + "': tuning its chordae failed: " + t.failure);
   }
   ValveSequence& seq = p->sequence;

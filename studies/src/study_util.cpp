@@ -109,10 +109,7 @@ double ensure_observed(const std::filesystem::path& file, std::uint64_t seed, in
     if (std::filesystem::exists(file)) {
       try {
         const Patient p = read_patient(file, false);
-        if (p.sequence.first_closed >= 0 &&
-            p.sequence.frames[static_cast<std::size_t>(p.sequence.first_closed)]
-                .la_surface.has_value())
-          return 0.0;
+        if (p.sequence.has_closed_leaflets()) return 0.0;
       } catch (const Error&) {
         // damaged: make it again
       }

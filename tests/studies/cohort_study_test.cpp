@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "mvtwin/core/error.h"
+#include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/table_file.h"
 #include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/studies/scaling.h"
@@ -324,6 +325,41 @@ TEST(CohortStudyConfig, NormalValvesAreTunedByDefaultAndTheConfigSaysSo) {
   // The test size does not tune (13 closures at the paper's grid per normal valve).
   EXPECT_FALSE(CohortStudyOptions::quick().observation.tune_normal_chordae);
   EXPECT_TRUE(CohortStudyOptions::quick().config()["normal_chordae_tuning"].is_null());
+}
+
+TEST_F(CohortStudy, ATunedNormalValveIsObservedAnewAndTheSickOnesObservationIsShared) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "the tuning's closures take too long under AddressSanitizer";
+#endif
+  // Patient 0 is normal, 1 is not; one observation cache for both runs.
+  CohortStudyOptions o = quick(2);
+  o.cache = dir_ / "cache";
+  auto pool = make_local_pool();
+  run_cohort_study(o, *pool);
+  auto files = [&] {
+    std::set<std::string> names;
+    for (const auto& e : fs::directory_iterator(o.cache))
+      names.insert(e.path().filename().string());
+    return names;
+  };
+  const std::set<std::string> untuned = files();
+  ASSERT_EQ(untuned.size(), 2u);
+  // The same study with the normal valve tuned (on a coarse model: seconds), in another folder.
+  o.out = dir_ / "tuned";
+  o.observation.tune_normal_chordae = true;
+  o.observation.tuning.simulation = o.observation.simulation;
+  o.observation.tuning.iterations = 1;
+  run_cohort_study(o, *pool);
+  const std::set<std::string> both = files();
+  ASSERT_EQ(both.size(), 3u) << "only the normal valve's observation is made again";
+  std::string tuned_file;
+  for (const auto& n : both)
+    if (!untuned.count(n)) tuned_file = n;
+  EXPECT_NE(tuned_file.find("virtual-2026-0"), std::string::npos) << tuned_file;
+  EXPECT_EQ(forward::tuning_edition(read_patient(o.cache / tuned_file, false)),
+            forward::kChordaeTuningEdition);
+  EXPECT_EQ(read_json(o.out / "study_config.json")["config"]["normal_chordae_tuning"],
+            forward::kChordaeTuningEdition);
 }
 
 TEST_F(CohortStudy, InvalidOptionsAreRefused) {

@@ -84,6 +84,11 @@ struct ValveSequence {
   std::string chordae_lengths_problem() const;
 
   int num_frames() const { return static_cast<int>(frames.size()); }
+  /// Whether the first closed frame has its leaflets (observed, or simulated by
+  /// --simulate-closure / a study's observation); false when it is unknown.
+  bool has_closed_leaflets() const {
+    return first_closed >= 0 && frames[static_cast<size_t>(first_closed)].la_surface.has_value();
+  }
   /// Names of the landmarks assumed (estimated from anatomy) in any frame, "" when none.
   std::string assumed_landmarks() const;
 

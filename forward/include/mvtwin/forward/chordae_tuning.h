@@ -1,6 +1,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,11 @@ struct ChordaeTuning {
   /// Per closure (0: the starting lengths), its EROA, mm^2; NaN where it failed.
   std::vector<double> eroa_mm2;
   int best = 0;  ///< index into eroa_mm2 of `lengths`
+  /// The EROA of the kept lengths' closure, mm^2; NaN when the first closure failed.
+  double kept_eroa_mm2() const {
+    return eroa_mm2.empty() ? std::numeric_limits<double>::quiet_NaN()
+                            : eroa_mm2[static_cast<size_t>(best)];
+  }
   /// Why a closure failed, "" when none did.
   std::string failure;
 };
