@@ -30,6 +30,8 @@ int run_cohort(const CohortArgs& a) {
   manifest["n"] = a.n;
   manifest["taut_chordae_lengths"] = a.patient.taut_chordae_lengths;
   manifest["commissure_clearance_mm"] = a.patient.commissure_clearance_mm;
+  manifest["myxomatous_flail"] = a.patient.myxomatous_flail;
+  manifest["tethering_scale"] = a.patient.tethering_scale;
   manifest["tune_normal_chordae"] = a.tune_normal_chordae;
   if (a.tune_normal_chordae) manifest["chordae_tuning_edition"] = forward::kChordaeTuningEdition;
   manifest["patients"] = nlohmann::json::array();
@@ -49,16 +51,22 @@ int run_cohort(const CohortArgs& a) {
       if (fs::exists(path)) {
         try {
           const Patient old = read_patient(path, false);
-          double clearance = 0.0;
+          // Files of edition 2 and before do not record the severity options: theirs were off.
+          double clearance = 0.0, myxomatous = 0.0, tethering = 1.0;
           if (old.truth) {
-            for (const auto& [quantity, v] : old.truth->anatomy)
+            for (const auto& [quantity, v] : old.truth->anatomy) {
               if (quantity == "commissure_clearance_ed_mm") clearance = v;
+              if (quantity == "myxomatous_flail") myxomatous = v;
+              if (quantity == "tethering_scale") tethering = v;
+            }
           }
           reuse =
               old.provenance.seed == s && old.sequence.ures == a.patient.ures &&
               old.sequence.vres == a.patient.vres &&
               old.sequence.marginal_chordae_lengths.empty() == !a.patient.taut_chordae_lengths &&
               clearance == a.patient.commissure_clearance_mm &&
+              (myxomatous != 0.0) == a.patient.myxomatous_flail &&
+              tethering == a.patient.tethering_scale &&
               forward::tuning_edition(old) == (tune ? forward::kChordaeTuningEdition : 0);
         } catch (const Error&) {
           reuse = false;  // damaged or foreign file: make it again

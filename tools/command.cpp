@@ -60,6 +60,14 @@ void add_closing_anatomy_options(CLI::App* cmd, VirtualPatientOptions& o) {
                   "from itself, mm (0: hanging vertically, as before the closing anatomy)")
       ->default_val(o.commissure_clearance_mm)
       ->check(CLI::Range(0.0, 10.0));
+  cmd->add_flag("--myxomatous-flail,!--no-myxomatous-flail", o.myxomatous_flail,
+                "a flail's valve is myxomatous: posterior leaflet modulus x 0.6, marginal chordae "
+                "stiffness x 0.4 (the default since edition 3; docs/virtual-patients.md)");
+  cmd->add_option("--tethering-scale", o.tethering_scale,
+                  "functional MR's papillary displacement (apically 3-7 mm, apart 3-8 mm) times "
+                  "this (1: edition 2)")
+      ->default_val(o.tethering_scale)
+      ->check(CLI::Range(0.0, 3.0));
 }
 
 void add_tune_normal_option(CLI::App* cmd, bool& tune) {

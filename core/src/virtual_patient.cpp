@@ -85,9 +85,12 @@ Pathology draw_pathology(Rng& rng) {
   return Pathology::kStiffLeaflets;
 }
 
-/// `flail_scallops`: a ruptured-chordae patient's torn chordae are one scallop's (with chordae
-/// lengths as anatomy, docs/virtual-patients.md "Flail scallops"), not 1-3 of them.
-Draw draw_anatomy(Rng& rng, Pathology pathology, bool flail_scallops) {
+/// With `o.taut_chordae_lengths` a ruptured-chordae patient's torn chordae are one scallop's
+/// (docs/virtual-patients.md "Flail scallops"), not 1-3 of them; `o.myxomatous_flail` and
+/// `o.tethering_scale` set the severity of flails and of functional MR ("Severity as the clinic
+/// sees it"). No option changes which numbers are drawn: the rest of the patient stays the same.
+Draw draw_anatomy(Rng& rng, Pathology pathology, const VirtualPatientOptions& o) {
+  const bool flail_scallops = o.taut_chordae_lengths;
   Draw d;
   d.pathology = pathology;
   // Annulus at end-diastole (docs/virtual-patients.md: AL-PM 35->39 mm, AP 24->29 mm, AP/IT 1.11,
@@ -174,6 +177,13 @@ Draw draw_anatomy(Rng& rng, Pathology pathology, bool flail_scallops) {
       // unless the draw stands at either end: P3 and P1 one in 8-10 draws each.
       const int positions = 26 - n - 16 + 1, at = first - 16;
       d.ruptured = flail_scallop_chordae(at == 0 ? 0 : (at == positions - 1 ? 2 : 1), n + 3);
+      // A flail valve is myxomatous: its leaflets more extensible (failure strain 56 against 43 %
+      // in other myxomatous leaflets; the modulus factor is chosen) and its chordae less stiff
+      // (23.5 against 59.1 MPa), Mills et al. 2004, Am Heart J 148:144.
+      if (o.myxomatous_flail) {
+        h.pl_modulus_scale *= kFlailPosteriorModulus;
+        h.marginal_stiffness_scale *= kFlailChordaeStiffness;
+      }
       break;
     }
     case Pathology::kFunctionalMr: {
@@ -186,8 +196,8 @@ Draw draw_anatomy(Rng& rng, Pathology pathology, bool flail_scallops) {
       d.height_ratio_ed *= rng.uniform(0.6, 0.85);
       d.height_ratio_closed = d.height_ratio_ed + rng.uniform(0.0, 0.02);
       d.contraction *= 0.5;  // dysfunctional annulus contracts less
-      d.papillary_depth += rng.uniform(3.0, 7.0);
-      d.papillary_separation += rng.uniform(3.0, 8.0);
+      d.papillary_depth += o.tethering_scale * rng.uniform(3.0, 7.0);
+      d.papillary_separation += o.tethering_scale * rng.uniform(3.0, 8.0);
       // Leaflets enlarge with the annulus (Chaput et al. 2008): tethering, not missing tissue,
       // is what keeps them from coapting.
       const double growth = dilation * rng.uniform(0.95, 1.05);
@@ -516,6 +526,11 @@ bool VirtualPatientOptions::is_valid(std::string* error) const {
     *error = "vres must be at least 3 (got " + std::to_string(vres) + ")";
     return false;
   }
+  if (!(tethering_scale >= 0.0 && tethering_scale <= 3.0)) {
+    *error = "the functional-MR tethering scale must be 0-3 (got " +
+             std::to_string(tethering_scale) + ")";
+    return false;
+  }
   if (!(commissure_clearance_mm >= 0.0 && commissure_clearance_mm <= 10.0)) {
     *error = "the commissures' end-diastolic clearance must be 0-10 mm (got " +
              std::to_string(commissure_clearance_mm) + ")";
@@ -529,7 +544,7 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
   if (!options.is_valid(&error)) throw Error("virtual patient: " + error);
   Rng rng(seed);
   const Pathology pathology = options.pathology ? *options.pathology : draw_pathology(rng);
-  Draw d = draw_anatomy(rng, pathology, options.taut_chordae_lengths);
+  Draw d = draw_anatomy(rng, pathology, options);
   const Eigen::Matrix4d pose = draw_pose(rng);
   const int ures = options.ures, vres = options.vres;
   set_widest_openings(d, ures, vres);
@@ -690,6 +705,8 @@ Patient make_virtual_patient(std::uint64_t seed, const VirtualPatientOptions& op
       {"pl_opening_ed_deg", d.pl_opening_ed / kDeg},
       {"commissure_opening_ed_deg", d.commissure_opening_ed / kDeg},
       {"commissure_clearance_ed_mm", options.commissure_clearance_mm},
+      {"myxomatous_flail", options.myxomatous_flail ? 1.0 : 0.0},
+      {"tethering_scale", options.tethering_scale},
       {"leaflet_bulge", d.bulge},
       {"scallop_depth", d.scallop_depth},
       {"papillary_depth_mm", d.papillary_depth},

@@ -106,6 +106,7 @@ double ClipStudyOptions::option_position(int k) const {
 json ClipStudyOptions::config() const {
   json c{{"seed", seed},
          {"patients", patients},
+         {"virtual_patient_edition", kVirtualPatientEdition},
          {"min_eroa_mm2", min_eroa_mm2},
          {"max_scanned", max_scanned},
          {"truth_model", detail::describe(observation.simulation)},

@@ -147,6 +147,7 @@ json CohortStudyOptions::config() const {
     c.update(
         {{"patients", patients},
          {"seed", seed},
+         {"virtual_patient_edition", kVirtualPatientEdition},
          {"observation_model", describe(observation.simulation)},
          {"observation_noise_mm", observation.noise_mm},
          {"normal_chordae_tuning",

@@ -102,7 +102,9 @@ json ConvergenceStudyOptions::config() const {
          {"layers", layers},
          {"dt", dt}};
   if (patient_file.empty())
-    c.update({{"seed", seed}, {"patient", patient}});
+    c.update({{"seed", seed},
+              {"patient", patient},
+              {"virtual_patient_edition", kVirtualPatientEdition}});
   else
     c["patient_file"] = fs::absolute(patient_file).lexically_normal().string();
   return c;

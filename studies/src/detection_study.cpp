@@ -156,6 +156,7 @@ DetectionStudyOptions DetectionStudyOptions::quick() {
 json DetectionStudyOptions::config() const {
   const VirtualTeeTruth t(truth_sets);
   json c{{"seed", seed},
+         {"virtual_patient_edition", kVirtualPatientEdition},
          {"truth_model", detail::describe(t.closure.simulation)},
          {"render", render_json(render)}};
   if (model_file.empty()) {

@@ -53,7 +53,7 @@ json RobustnessStudyOptions::config() const {
   json m = detail::describe(model);
   m.erase("dt");  // drawn per case
   // Not the number of runs: case i does not depend on it, so a larger --runs extends a study.
-  return {{"model", m}, {"seed", seed}};
+  return {{"model", m}, {"seed", seed}, {"virtual_patient_edition", kVirtualPatientEdition}};
 }
 
 namespace {

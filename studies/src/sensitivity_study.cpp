@@ -71,7 +71,9 @@ SensitivityStudyOptions SensitivityStudyOptions::quick() {
 json SensitivityStudyOptions::config() const {
   json c{{"model", detail::describe(model)}, {"sample_s", sample_s}};
   if (patient_file.empty())
-    c.update({{"seed", seed}, {"patient", patient}});
+    c.update({{"seed", seed},
+              {"patient", patient},
+              {"virtual_patient_edition", kVirtualPatientEdition}});
   else
     c["patient_file"] = fs::absolute(patient_file).lexically_normal().string();
   return c;

@@ -201,6 +201,59 @@ TEST(VirtualPatient, AFlailWithChordaeLengthsIsAScallopsChordae) {
   EXPECT_GT(scallops[2], 0);
 }
 
+// Edition 3's severities (docs/virtual-patients.md, "Severity as the clinic sees it"): a flail's
+// valve is myxomatous (posterior modulus and marginal chordae stiffness scaled) and functional MR's
+// papillary displacement is the edition-2 draw times tethering_scale; every other number of every
+// patient, and every number of the other pathologies, is edition 2's.
+TEST(VirtualPatient, FlailsAreMyxomatousAndFunctionalMrTethersDeeper) {
+  const VirtualPatientOptions now, before = VirtualPatientOptions::edition2();
+  EXPECT_TRUE(now.myxomatous_flail);
+  EXPECT_EQ(now.tethering_scale, 1.3);
+  auto anatomy = [](const Patient& p, const std::string& name) {
+    for (const auto& [quantity, v] : p.truth->anatomy)
+      if (quantity == name) return v;
+    return std::nan("");
+  };
+  int flails = 0, fmr = 0;
+  for (int i = 0; i < 20; ++i) {
+    const Patient p = make_cohort_patient(77, i, now), q = make_cohort_patient(77, i, before);
+    const ValveParameters &a = p.truth->parameters, &b = q.truth->parameters;
+    const Pathology path = p.truth->pathology;
+    const bool flail = path == Pathology::kProlapseRupturedChordae;
+    EXPECT_DOUBLE_EQ(a.pl_modulus_scale, b.pl_modulus_scale * (flail ? 0.6 : 1.0)) << i;
+    EXPECT_DOUBLE_EQ(a.marginal_stiffness_scale, b.marginal_stiffness_scale * (flail ? 0.4 : 1.0))
+        << i;
+    EXPECT_EQ(a.al_modulus_scale, b.al_modulus_scale) << i;
+    EXPECT_EQ(a.peak_pressure_mpa, b.peak_pressure_mpa) << i;
+    EXPECT_EQ(anatomy(p, "myxomatous_flail"), 1.0);
+    EXPECT_EQ(anatomy(q, "myxomatous_flail"), 0.0);
+    EXPECT_EQ(anatomy(p, "tethering_scale"), 1.3);
+    flails += flail;
+    if (path == Pathology::kFunctionalMr) {
+      ++fmr;
+      VirtualPatientOptions untethered = now;
+      untethered.tethering_scale = 0.0;
+      const Patient z = make_cohort_patient(77, i, untethered);
+      for (const char* name : {"papillary_depth_mm", "papillary_separation_mm"}) {
+        const double displaced_now = anatomy(p, name) - anatomy(z, name);
+        const double displaced_before = anatomy(q, name) - anatomy(z, name);
+        EXPECT_GT(displaced_before, 2.99) << i << " " << name;  // at least 3 mm in edition 2
+        EXPECT_NEAR(displaced_now, 1.3 * displaced_before, 1e-9) << i << " " << name;
+      }
+    } else {
+      // The same geometry to the bit where the tethering does not act.
+      EXPECT_TRUE(p.sequence.frames[p.sequence.end_diastole].la_surface->points().isApprox(
+          q.sequence.frames[q.sequence.end_diastole].la_surface->points(), 0.0))
+          << i;
+    }
+  }
+  EXPECT_EQ(flails, 4);
+  EXPECT_EQ(fmr, 4);
+  VirtualPatientOptions bad;
+  bad.tethering_scale = -0.5;
+  EXPECT_THROW(make_virtual_patient(1, bad), Error);
+}
+
 struct Sample {
   std::vector<double> v;
   void add(double x) { v.push_back(x); }

@@ -33,7 +33,11 @@ TEST(ImportCalibration, RecoversTheRestLengthsOfTheOriginal) {
 #endif
   // Observed by the calibration model itself without noise, so that the hidden values are the
   // original's exact minimum and any loss comes from the label maps and the import.
-  Patient p = make_virtual_patient(3);
+  // Seed 3 is a flail. Edition 3 made its valve myxomatous (marginal chordae stiffness 0.32,
+  // posterior modulus 0.64, which this fit leaves at their defaults): the original then fits its
+  // marginal factors to the bounds (1.2, 1.2 for 1.04, 0.99; error 0.80 -> 0.66 mm), so the test
+  // keeps edition 2's patient, whose rest lengths are what the fit can recover.
+  Patient p = make_virtual_patient(3, VirtualPatientOptions::edition2());
   forward::VirtualClosureOptions vo;
   vo.simulation = small_model().simulation;
   vo.noise_mm = 0.0;

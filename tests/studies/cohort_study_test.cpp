@@ -17,6 +17,7 @@
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
 #include "mvtwin/core/table_file.h"
+#include "mvtwin/core/virtual_patient.h"
 #include "mvtwin/forward/chordae_tuning.h"
 #include "mvtwin/studies/scaling.h"
 #include "mvtwin/studies/work_pool.h"
@@ -360,6 +361,25 @@ TEST_F(CohortStudy, ATunedNormalValveIsObservedAnewAndTheSickOnesObservationIsSh
             forward::kChordaeTuningEdition);
   EXPECT_EQ(read_json(o.out / "study_config.json")["config"]["normal_chordae_tuning"],
             forward::kChordaeTuningEdition);
+}
+
+// The virtual patients' edition is part of the config: a folder of edition 2's patients (flails
+// and functional MR drawn otherwise) is refused, not resumed with today's patients mixed in.
+TEST_F(CohortStudy, AFolderOfAnotherPatientEditionIsRefused) {
+  CohortStudyOptions o = quick(1);
+  json old{{"study", "cohort"}, {"config", o.config()}};
+  ASSERT_EQ(old["config"]["virtual_patient_edition"], kVirtualPatientEdition);
+  old["config"]["virtual_patient_edition"] = kVirtualPatientEdition - 1;
+  fs::create_directories(o.out);
+  std::ofstream(o.out / "study_config.json") << old.dump(2);
+  auto pool = make_local_pool();
+  try {
+    run_cohort_study(o, *pool);
+    ADD_FAILURE() << "a folder of another patient edition was resumed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("virtual_patient_edition"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(o.out / "study.json"));
 }
 
 TEST_F(CohortStudy, InvalidOptionsAreRefused) {

@@ -342,6 +342,40 @@ TEST_F(Cli, ClosingAnatomyOptionsAreRecordedAndACohortIsRemadeForThem) {
   EXPECT_FALSE(fs::exists(dir_ / "q.h5"));
 }
 
+// Edition 3's severity options: recorded in cohort.json and in each patient, a cohort made with
+// edition 2's is remade (not reused) for today's, impossible scales refused by name.
+TEST_F(Cli, SeverityOptionsAreRecordedAndACohortIsRemadeForThem) {
+  const std::string cohort = "cohort --n 4 --seed 3 --no-tune-normal-chordae --out " + path("c");
+  CmdResult r = run(cohort + " --no-myxomatous-flail --tethering-scale 1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto flail2 = mvtwin::read_patient(path("c/patient_0002.h5"));
+  const auto fmr2 = mvtwin::read_patient(path("c/patient_0003.h5"));
+  r = run(cohort);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
+  const auto flail3 = mvtwin::read_patient(path("c/patient_0002.h5"));
+  const auto fmr3 = mvtwin::read_patient(path("c/patient_0003.h5"));
+  EXPECT_NEAR(flail3.truth->parameters.pl_modulus_scale,
+              0.6 * flail2.truth->parameters.pl_modulus_scale, 1e-12);
+  auto depth = [](const mvtwin::Patient& p) {
+    for (const auto& [quantity, v] : p.truth->anatomy)
+      if (quantity == "papillary_depth_mm") return v;
+    return std::nan("");
+  };
+  EXPECT_GT(depth(fmr3), depth(fmr2) + 0.89);  // 0.3 x at least 3 mm deeper
+  const nlohmann::json manifest = nlohmann::json::parse(std::ifstream(path("c/cohort.json")));
+  EXPECT_EQ(manifest.at("myxomatous_flail"), true);
+  EXPECT_EQ(manifest.at("tethering_scale"), 1.3);
+  r = run(cohort + " --tethering-scale 1.3");
+  EXPECT_NE(r.out.find("made 0, kept 4, failed 0"), std::string::npos) << r.out;
+  r = run(cohort + " --tethering-scale 1");
+  EXPECT_NE(r.out.find("made 4, kept 0, failed 0"), std::string::npos) << r.out;
+  r = run("phantom --seed 4 --tethering-scale 4 --out " + path("q.h5"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--tethering-scale"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "q.h5"));
+}
+
 /// The chordae tuning edition a patient records (0: none).
 int tuning_edition(const mvtwin::Patient& p) {
   for (const auto& [name, value] : p.truth->anatomy)

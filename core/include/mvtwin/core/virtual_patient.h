@@ -31,11 +31,25 @@ struct VirtualPatientOptions {
   /// follow the fold); 0 leaves them hanging nearly vertically, as in early diastole (the
   /// generator before the closing anatomy).
   double commissure_clearance_mm = 1.0;
-  /// The generator before the closing anatomy (both options above off).
+  /// Severity as the clinic sees it (edition 3, docs/virtual-patients.md): a flail's valve is
+  /// myxomatous, its posterior leaflet's modulus x kFlailPosteriorModulus and its marginal
+  /// chordae's stiffness x kFlailChordaeStiffness (Mills et al. 2004); false: edition 2's flails.
+  bool myxomatous_flail = true;
+  /// Functional MR's papillary displacement (apically 3-7 mm and apart 3-8 mm in edition 2) times
+  /// this; 1: edition 2's tethering.
+  double tethering_scale = 1.3;
+  /// The generator before the closing anatomy (edition 1: every option above off).
   static VirtualPatientOptions before_closing_anatomy() {
-    VirtualPatientOptions o;
+    VirtualPatientOptions o = edition2();
     o.taut_chordae_lengths = false;
     o.commissure_clearance_mm = 0.0;
+    return o;
+  }
+  /// Edition 2's generator: the closing anatomy with edition 2's severities.
+  static VirtualPatientOptions edition2() {
+    VirtualPatientOptions o;
+    o.myxomatous_flail = false;
+    o.tethering_scale = 1.0;
     return o;
   }
 
@@ -44,9 +58,15 @@ struct VirtualPatientOptions {
 };
 
 /// The default generator's edition: raised whenever the default options draw different
-/// patients from the same seed (2: the closing anatomy became the default). Caches of anything
-/// computed from default virtual patients (observed closures) key on it.
-inline constexpr int kVirtualPatientEdition = 2;
+/// patients from the same seed (2: the closing anatomy became the default; 3: myxomatous flails
+/// and deeper functional-MR tethering). Caches of anything computed from default virtual
+/// patients (observed closures) key on it.
+inline constexpr int kVirtualPatientEdition = 3;
+
+/// A flail valve's posterior leaflet modulus and marginal chordae stiffness, relative to the
+/// patient's draw (edition 3; docs/virtual-patients.md "Severity as the clinic sees it").
+inline constexpr double kFlailPosteriorModulus = 0.6;
+inline constexpr double kFlailChordaeStiffness = 0.4;
 
 /// Generates a virtual (synthetic) patient from a seed: a saddle annulus that contracts and
 /// deepens from end-diastole to the first closed frame, open leaflets on the (u,v) grid,
