@@ -168,6 +168,14 @@ Draw draw_anatomy(Rng& rng, Pathology pathology, const VirtualPatientOptions& o)
       // 1-3 adjacent marginal chordae torn, centred on the posterior scallops (P1-P3).
       const int n = rng.uniform_int(1, 3);
       const int first = rng.uniform_int(16, 26 - n);
+      // A flail valve is myxomatous: its leaflets more extensible (failure strain 56 against 43 %
+      // in other myxomatous leaflets; the modulus factor is chosen) and its chordae less stiff
+      // (23.5 against 59.1 MPa), Mills et al. 2004, Am Heart J 148:144. With either reading of
+      // the torn chordae below.
+      if (o.myxomatous_flail) {
+        h.pl_modulus_scale *= kFlailPosteriorModulus;
+        h.marginal_stiffness_scale *= kFlailChordaeStiffness;
+      }
       if (!flail_scallops) {
         for (int k = 0; k < n; ++k) d.ruptured.push_back(first + k);
         break;
@@ -177,13 +185,6 @@ Draw draw_anatomy(Rng& rng, Pathology pathology, const VirtualPatientOptions& o)
       // unless the draw stands at either end: P3 and P1 one in 8-10 draws each.
       const int positions = 26 - n - 16 + 1, at = first - 16;
       d.ruptured = flail_scallop_chordae(at == 0 ? 0 : (at == positions - 1 ? 2 : 1), n + 3);
-      // A flail valve is myxomatous: its leaflets more extensible (failure strain 56 against 43 %
-      // in other myxomatous leaflets; the modulus factor is chosen) and its chordae less stiff
-      // (23.5 against 59.1 MPa), Mills et al. 2004, Am Heart J 148:144.
-      if (o.myxomatous_flail) {
-        h.pl_modulus_scale *= kFlailPosteriorModulus;
-        h.marginal_stiffness_scale *= kFlailChordaeStiffness;
-      }
       break;
     }
     case Pathology::kFunctionalMr: {

@@ -249,6 +249,15 @@ TEST(VirtualPatient, FlailsAreMyxomatousAndFunctionalMrTethersDeeper) {
   }
   EXPECT_EQ(flails, 4);
   EXPECT_EQ(fmr, 4);
+  // Myxomatous with either reading of the torn chordae (a scallop's, or 1-3 without chordae
+  // lengths), so that the recorded option is what was applied.
+  VirtualPatientOptions few = VirtualPatientOptions::before_closing_anatomy(), plain = few;
+  few.myxomatous_flail = true;
+  few.pathology = plain.pathology = Pathology::kProlapseRupturedChordae;
+  const Patient soft = make_virtual_patient(5, few), drawn = make_virtual_patient(5, plain);
+  EXPECT_DOUBLE_EQ(soft.truth->parameters.pl_modulus_scale,
+                   0.6 * drawn.truth->parameters.pl_modulus_scale);
+  EXPECT_EQ(anatomy(soft, "myxomatous_flail"), 1.0);
   VirtualPatientOptions bad;
   bad.tethering_scale = -0.5;
   EXPECT_THROW(make_virtual_patient(1, bad), Error);
