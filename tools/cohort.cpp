@@ -52,14 +52,11 @@ int run_cohort(const CohortArgs& a) {
         try {
           const Patient old = read_patient(path, false);
           // Files of edition 2 and before do not record the severity options: theirs were off.
-          double clearance = 0.0, myxomatous = 0.0, tethering = 1.0;
-          if (old.truth) {
-            for (const auto& [quantity, v] : old.truth->anatomy) {
-              if (quantity == "commissure_clearance_ed_mm") clearance = v;
-              if (quantity == "myxomatous_flail") myxomatous = v;
-              if (quantity == "tethering_scale") tethering = v;
-            }
-          }
+          const VirtualTruth none;
+          const VirtualTruth& truth = old.truth ? *old.truth : none;
+          const double clearance = truth.anatomy_or("commissure_clearance_ed_mm", 0.0);
+          const double myxomatous = truth.anatomy_or("myxomatous_flail", 0.0);
+          const double tethering = truth.anatomy_or("tethering_scale", 1.0);
           reuse =
               old.provenance.seed == s && old.sequence.ures == a.patient.ures &&
               old.sequence.vres == a.patient.vres &&

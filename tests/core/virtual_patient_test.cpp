@@ -210,10 +210,9 @@ TEST(VirtualPatient, FlailsAreMyxomatousAndFunctionalMrTethersDeeper) {
   EXPECT_TRUE(now.myxomatous_flail);
   EXPECT_EQ(now.tethering_scale, 1.3);
   auto anatomy = [](const Patient& p, const std::string& name) {
-    for (const auto& [quantity, v] : p.truth->anatomy)
-      if (quantity == name) return v;
-    return std::nan("");
+    return p.truth->anatomy_or(name, std::nan(""));
   };
+  EXPECT_TRUE(std::isnan(anatomy(make_virtual_patient(1), "no_such_draw")));
   int flails = 0, fmr = 0;
   for (int i = 0; i < 20; ++i) {
     const Patient p = make_cohort_patient(77, i, now), q = make_cohort_patient(77, i, before);

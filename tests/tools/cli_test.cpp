@@ -358,9 +358,7 @@ TEST_F(Cli, SeverityOptionsAreRecordedAndACohortIsRemadeForThem) {
   EXPECT_NEAR(flail3.truth->parameters.pl_modulus_scale,
               0.6 * flail2.truth->parameters.pl_modulus_scale, 1e-12);
   auto depth = [](const mvtwin::Patient& p) {
-    for (const auto& [quantity, v] : p.truth->anatomy)
-      if (quantity == "papillary_depth_mm") return v;
-    return std::nan("");
+    return p.truth->anatomy_or("papillary_depth_mm", std::nan(""));
   };
   EXPECT_GT(depth(fmr3), depth(fmr2) + 0.89);  // 0.3 x at least 3 mm deeper
   const nlohmann::json manifest = nlohmann::json::parse(std::ifstream(path("c/cohort.json")));

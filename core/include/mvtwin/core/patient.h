@@ -45,6 +45,13 @@ struct VirtualTruth {
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
   /// Named anatomy draws (e.g. "ap_diameter_ed_mm"), for the record.
   std::vector<std::pair<std::string, double>> anatomy;
+  /// The anatomy draw of that name; `absent` when the patient does not record it (files of an
+  /// earlier generator edition lack the later names).
+  double anatomy_or(std::string_view name, double absent) const {
+    for (const auto& [quantity, v] : anatomy)
+      if (quantity == name) return v;
+    return absent;
+  }
   /// How the frames whose leaflets are not geometric (closing and closed) were produced.
   std::string closed_frames = "missing: closed frames need the forward simulator";
   /// The regurgitant orifice of that simulation's closed valve: the true orifice, which the
