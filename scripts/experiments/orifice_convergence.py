@@ -49,8 +49,16 @@ def run(args, patient, grid):
         print(f"{stem} at {grid} x {grid}: done", file=sys.stderr)
     with open(summary) as f:
         result = json.load(f)
-    seconds = float(open(timing).read()) if os.path.exists(timing) else float("nan")
+    seconds = float("nan")
+    if os.path.exists(timing):
+        with open(timing) as f:
+            seconds = float(f.read())
     return result, seconds
+
+
+def area(value):
+    """An MVA in cm^2, or "fail" where the diastole did not open (the summary holds null)."""
+    return "fail" if value is None else f"{value:.2f}"
 
 
 def main():
@@ -77,7 +85,7 @@ def main():
             print(f"| {patient} | failed (see above) |")
             continue
         eroa = {g: (r[0]["before"]["eroa_mm2"], r[0]["eroa_mm2"]) for g, r in runs.items()}
-        mva = {g: (r[0]["before_open"]["mva_cm2"], r[0]["mva_cm2"]) for g, r in runs.items()}
+        mva = {g: (r[0]["before_open"].get("mva_cm2"), r[0].get("mva_cm2")) for g, r in runs.items()}
         rows += 1
         met[0] += tolerance_met(eroa[paper][0], eroa[finest][0])
         met[1] += tolerance_met(eroa[paper][1], eroa[finest][1])
@@ -86,8 +94,8 @@ def main():
         print(f"| {runs[paper][0]['patient_id']} | {cells} | "
               f"{verdict(eroa[paper][0], eroa[finest][0])} | "
               f"{verdict(eroa[paper][1], eroa[finest][1])} | "
-              f"{mva[paper][0]:.2f} / {mva[paper][1]:.2f}; {mva[finest][0]:.2f} / "
-              f"{mva[finest][1]:.2f} | {seconds} |")
+              f"{area(mva[paper][0])} / {area(mva[paper][1])}; {area(mva[finest][0])} / "
+              f"{area(mva[finest][1])} | {seconds} |")
     print(f"\nwithin max(1 mm^2, 10 %) of {finest} x {finest}: without a clip {met[0]} of {rows}, "
           f"with the clip {met[1]} of {rows}")
 
