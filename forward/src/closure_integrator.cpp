@@ -142,11 +142,38 @@ Eigen::VectorXd ClosureIntegrator::first_guess(const ValveState& start, double t
   return v1;
 }
 
+// Elastic forces (and K p with p) in one pass, and beside it (run_both) the contact's search and
+// forces (velocities v for friction) into their own vector. Returns the first inverted element
+// or -1; *contact_s: the contact's time.
+int ClosureIntegrator::force_pass(const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                                  const Eigen::VectorXd* p, Eigen::VectorXd* g, Eigen::VectorXd* Kp,
+                                  Eigen::VectorXd* fc, double* contact_s) {
+  int bad = -1;
+  run_both(
+      options_.threads,
+      [&] {
+        if (!terms_.elastic) return;
+        bad = body_.gradient(x, g, &rot_, nullptr, p, Kp);
+        node_rotation_current_ = false;
+        for (const ElementRotations::Guard& gd : rot_.guards) ever_guarded_.insert(gd.element);
+      },
+      [&] {
+        if (!(contact_ && terms_.contact)) return;
+        const auto tc = Clock::now();
+        const int found = contact_->detect(x);
+        counters_.contacts = found;
+        counters_.max_contacts = std::max(counters_.max_contacts, found);
+        fc->setZero(ndof_);
+        contact_->add_forces(v, fc);
+        *contact_s = seconds_since(tc);
+      });
+  return bad;
+}
+
 StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, double h,
                                          const Eigen::VectorXd& v1) {
   const auto ta = Clock::now();
   const double tau1 = tau + h;
-  const double scene_time = std::max(tau1, 0.0);
   h_ = h;
   ck_ = h * options_.rayleigh_stiffness + h * h;  // K's factor in the step matrix
   cm_ = 1.0 + h * options_.rayleigh_mass;         // M's factor
@@ -156,27 +183,9 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
   // it (run_both) the contact's search and forces into their own vector.
   Eigen::VectorXd f = -options_.rayleigh_mass * mass_dof_.cwiseProduct(v1);
   Eigen::VectorXd g, Kv, fc;
-  int bad = -1;
   double contact_s = 0.0;
   const bool with_contact = contact_ && terms_.contact;
-  run_both(
-      options_.threads,
-      [&] {
-        if (!terms_.elastic) return;
-        bad = body_.gradient(x1, &g, &rot_, nullptr, &v1, &Kv);
-        node_rotation_current_ = false;
-        for (const ElementRotations::Guard& gd : rot_.guards) ever_guarded_.insert(gd.element);
-      },
-      [&] {
-        if (!with_contact) return;
-        const auto tc = Clock::now();
-        const int found = contact_->detect(x1);
-        counters_.contacts = found;
-        counters_.max_contacts = std::max(counters_.max_contacts, found);
-        fc.setZero(ndof_);
-        contact_->add_forces(v1, &fc);
-        contact_s = seconds_since(tc);
-      });
+  const int bad = force_pass(x1, v1, &v1, &g, &Kv, &fc, &contact_s);
   counters_.contact_s += contact_s;
   if (bad >= 0) {
     counters_.assembly_s += seconds_since(ta) - contact_s;
@@ -184,37 +193,9 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
   }
   if (terms_.elastic)
     f = -g - options_.rayleigh_mass * mass_dof_.cwiseProduct(v1) - options_.rayleigh_stiffness * Kv;
-  if (terms_.springs) {
-    const Eigen::Vector3d tips[2] = {scene_.papillary_tip(0, scene_time),
-                                     scene_.papillary_tip(1, scene_time)};
-    for (size_t c = 0; c < cables_.size(); ++c) {
-      const Cable& cb = cables_[c];
-      Eigen::Matrix<double, 6, 1> gc;
-      Eigen::Matrix<double, 6, 6> Hc;
-      const double rest = cable_rest(c, tau1);
-      const Eigen::Vector3d end = cb.b.empty() ? tips[cb.tip] : mean_of(cb.b, x1);
-      if (cb.bilateral) {
-        tie_gradient(cb.k, rest, mean_of(cb.a, x1), end, &gc, &Hc);
-      } else {
-        // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
-        const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
-        chorda_gradient(law, rest, mean_of(cb.a, x1), end, &gc, &Hc);
-      }
-      for (int k : cb.a) f.segment<3>(3 * k) -= gc.head<3>() / static_cast<double>(cb.a.size());
-      for (int k : cb.b) f.segment<3>(3 * k) -= gc.tail<3>() / static_cast<double>(cb.b.size());
-      cable_tangent_[c] = Hc.topLeftCorner<3, 3>();
-    }
-  }
+  if (terms_.springs) add_cable_forces(x1, tau1, &f);
   if (with_contact) f += fc;
-  if (terms_.pressure) {
-    const double p = tau1 < 0.0 ? 0.0 : scene_.pressure(tau1);
-    for (const PressureFace& pf : scene_.pressure_faces) {
-      const Eigen::Vector3d a = x1.segment<3>(3 * pf.a), b = x1.segment<3>(3 * pf.b),
-                            c = x1.segment<3>(3 * pf.c);
-      const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
-      for (int k = 0; k < 3; ++k) f.segment<3>(3 * pf.load[k]) += force;
-    }
-  }
+  if (terms_.pressure) add_pressure_forces(x1, tau1, &f);
   residual_.resize(static_cast<Eigen::Index>(free_dofs_.size()));
   for (size_t i = 0; i < free_dofs_.size(); ++i) {
     const int d = free_dofs_[i];
@@ -223,6 +204,52 @@ StepOutcome ClosureIntegrator::linearize(const ValveState& start, double tau, do
   // With two threads the contact ran beside the elastic pass: count only the rest here.
   counters_.assembly_s += seconds_since(ta) - contact_s;
   return {};
+}
+
+void ClosureIntegrator::add_cable_forces(const Eigen::VectorXd& x, double tau, Eigen::VectorXd* f) {
+  const double scene_time = std::max(tau, 0.0);
+  const Eigen::Vector3d tips[2] = {scene_.papillary_tip(0, scene_time),
+                                   scene_.papillary_tip(1, scene_time)};
+  for (size_t c = 0; c < cables_.size(); ++c) {
+    const Cable& cb = cables_[c];
+    Eigen::Matrix<double, 6, 1> gc;
+    Eigen::Matrix<double, 6, 6> Hc;
+    const double rest = cable_rest(c, tau);
+    const Eigen::Vector3d end = cb.b.empty() ? tips[cb.tip] : mean_of(cb.b, x);
+    if (cb.bilateral) {
+      tie_gradient(cb.k, rest, mean_of(cb.a, x), end, &gc, &Hc);
+    } else {
+      // A clip is a tension-only linear spring: force k (l - L0) as a law in strain.
+      const ChordaLaw law = cb.law ? *cb.law : ChordaLaw{1.0, cb.k * rest, cb.k * rest, 1.0};
+      chorda_gradient(law, rest, mean_of(cb.a, x), end, &gc, &Hc);
+    }
+    for (int k : cb.a) f->segment<3>(3 * k) -= gc.head<3>() / static_cast<double>(cb.a.size());
+    for (int k : cb.b) f->segment<3>(3 * k) -= gc.tail<3>() / static_cast<double>(cb.b.size());
+    cable_tangent_[c] = Hc.topLeftCorner<3, 3>();
+  }
+}
+
+void ClosureIntegrator::add_pressure_forces(const Eigen::VectorXd& x, double tau,
+                                            Eigen::VectorXd* f) const {
+  const double p = tau < 0.0 ? 0.0 : scene_.pressure(tau);
+  for (const PressureFace& pf : scene_.pressure_faces) {
+    const Eigen::Vector3d a = x.segment<3>(3 * pf.a), b = x.segment<3>(3 * pf.b),
+                          c = x.segment<3>(3 * pf.c);
+    const Eigen::Vector3d force = -p * 0.5 * (b - a).cross(c - a) / 3.0;
+    for (int k = 0; k < 3; ++k) f->segment<3>(3 * pf.load[k]) += force;
+  }
+}
+
+void ClosureIntegrator::add_cable_products(const Eigen::VectorXd& p, double s,
+                                           Eigen::VectorXd* y) const {
+  for (size_t c = 0; c < cables_.size(); ++c) {
+    const Cable& cb = cables_[c];
+    Eigen::Vector3d d = mean_of(cb.a, p);
+    if (!cb.b.empty()) d -= mean_of(cb.b, p);
+    const Eigen::Vector3d t = s * (cable_tangent_[c] * d);
+    for (int k : cb.a) y->segment<3>(3 * k) += t / static_cast<double>(cb.a.size());
+    for (int k : cb.b) y->segment<3>(3 * k) -= t / static_cast<double>(cb.b.size());
+  }
 }
 
 void ClosureIntegrator::multiply(const Eigen::VectorXd& pf, Eigen::VectorXd* y) {
@@ -234,21 +261,28 @@ void ClosureIntegrator::multiply(const Eigen::VectorXd& pf, Eigen::VectorXd* y) 
     body_.tangent_times(rot_, p_all_, &y_all_);
     y_all_ *= ck_;
   }
-  if (terms_.springs) {
-    for (size_t c = 0; c < cables_.size(); ++c) {
-      const Cable& cb = cables_[c];
-      Eigen::Vector3d d = mean_of(cb.a, p_all_);
-      if (!cb.b.empty()) d -= mean_of(cb.b, p_all_);
-      const Eigen::Vector3d t = h * h * (cable_tangent_[c] * d);
-      for (int k : cb.a) y_all_.segment<3>(3 * k) += t / static_cast<double>(cb.a.size());
-      for (int k : cb.b) y_all_.segment<3>(3 * k) -= t / static_cast<double>(cb.b.size());
-    }
-  }
+  if (terms_.springs) add_cable_products(p_all_, h * h, &y_all_);
   if (contact_ && terms_.contact) contact_->multiply(p_all_, h * h, h, &y_all_);
   y->resize(pf.size());
   for (size_t i = 0; i < free_dofs_.size(); ++i) {
     const int d = free_dofs_[i];
     (*y)[static_cast<Eigen::Index>(i)] = y_all_[d] + cm_ * mass_dof_[d] * p_all_[d];
+  }
+}
+
+void ClosureIntegrator::add_cable_cliques(double s) {
+  for (size_t c = 0; c < cables_.size(); ++c) {
+    const Cable& cb = cables_[c];
+    const int ma = static_cast<int>(cb.a.size()), m = ma + static_cast<int>(cb.b.size());
+    Eigen::MatrixXd K(3 * m, 3 * m);
+    for (int i = 0; i < m; ++i) {
+      const double wi = i < ma ? 1.0 / ma : -1.0 / (m - ma);
+      for (int j = 0; j < m; ++j) {
+        const double wj = j < ma ? 1.0 / ma : -1.0 / (m - ma);
+        K.block<3, 3>(3 * i, 3 * j) = wi * wj * cable_tangent_[c];
+      }
+    }
+    system_->add_clique(first_cable_clique_ + static_cast<int>(c), K, s);
   }
 }
 
@@ -260,21 +294,7 @@ const Eigen::SparseMatrix<double>& ClosureIntegrator::assemble_lower() {
   SymmetricBlockMatrix& system = *system_;
   system.set_zero();
   if (terms_.elastic) body_.assemble_tangent(rot_, ck_, &system);
-  if (terms_.springs) {
-    for (size_t c = 0; c < cables_.size(); ++c) {
-      const Cable& cb = cables_[c];
-      const int ma = static_cast<int>(cb.a.size()), m = ma + static_cast<int>(cb.b.size());
-      Eigen::MatrixXd K(3 * m, 3 * m);
-      for (int i = 0; i < m; ++i) {
-        const double wi = i < ma ? 1.0 / ma : -1.0 / (m - ma);
-        for (int j = 0; j < m; ++j) {
-          const double wj = j < ma ? 1.0 / ma : -1.0 / (m - ma);
-          K.block<3, 3>(3 * i, 3 * j) = wi * wj * cable_tangent_[c];
-        }
-      }
-      system.add_clique(first_cable_clique_ + static_cast<int>(c), K, h * h);
-    }
-  }
+  if (terms_.springs) add_cable_cliques(h * h);
   if (contact_ && terms_.contact) contact_->add_diagonal_blocks(h * h, h, &system);
   system.add_diagonal(cm_ * mass_);
   rot_at_factor_ = rot_;
@@ -544,6 +564,238 @@ void ClosureIntegrator::finish(ClosureResult* result) const {
     sum.contact_reused = contact_->reused();
     sum.min_contact_distance_mm = contact_->min_distance();
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The static solve.
+
+StepOutcome ClosureIntegrator::static_forces(const Eigen::VectorXd& x, double tau,
+                                             Eigen::VectorXd* f, Eigen::VectorXd* pressure) {
+  const auto ta = Clock::now();
+  Eigen::VectorXd g, fc;
+  double contact_s = 0.0;
+  const bool with_contact = contact_ && terms_.contact;
+  // At rest: no friction (and no velocity for it).
+  const int bad =
+      force_pass(x, Eigen::VectorXd::Zero(ndof_), nullptr, &g, nullptr, &fc, &contact_s);
+  counters_.contact_s += contact_s;
+  if (bad >= 0) {
+    counters_.assembly_s += seconds_since(ta) - contact_s;
+    return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
+  }
+  f->setZero(ndof_);
+  if (terms_.elastic) *f -= g;
+  if (terms_.springs) add_cable_forces(x, tau, f);
+  if (with_contact) *f += fc;
+  if (terms_.pressure) {
+    if (pressure) {
+      pressure->setZero(ndof_);
+      add_pressure_forces(x, tau, pressure);
+      *f += *pressure;
+    } else {
+      add_pressure_forces(x, tau, f);
+    }
+  }
+  counters_.assembly_s += seconds_since(ta) - contact_s;
+  return {};
+}
+
+void ClosureIntegrator::add_pressure_products(const Eigen::VectorXd& p, Eigen::VectorXd* y) const {
+  if (static_pressure_ == 0.0) return;
+  const Eigen::VectorXd& x = static_x_;
+  // Each load node carries -P/6 (a x b + b x c + c x a); the stiffness is minus its derivative:
+  // P/6 [c - b]x, P/6 [a - c]x, P/6 [b - a]x with respect to a, b and c (not symmetric).
+  for (const PressureFace& pf : scene_.pressure_faces) {
+    const Eigen::Vector3d a = x.segment<3>(3 * pf.a), b = x.segment<3>(3 * pf.b),
+                          c = x.segment<3>(3 * pf.c);
+    const Eigen::Vector3d t =
+        (static_pressure_ / 6.0) * ((c - b).cross(Eigen::Vector3d(p.segment<3>(3 * pf.a))) +
+                                    (a - c).cross(Eigen::Vector3d(p.segment<3>(3 * pf.b))) +
+                                    (b - a).cross(Eigen::Vector3d(p.segment<3>(3 * pf.c))));
+    for (int k = 0; k < 3; ++k) y->segment<3>(3 * pf.load[k]) += t;
+  }
+}
+
+StepOutcome ClosureIntegrator::assemble_static(const Eigen::VectorXd& x, double tau, double shift) {
+  const auto t0 = Clock::now();
+  if (terms_.elastic) {
+    if (const int bad = body_.consistent_tangents(x, rot_, &static_k_); bad >= 0)
+      return failed(Outcome::kInvertedElement, "element " + std::to_string(bad) + " inverted");
+  }
+  static_x_ = x;
+  static_pressure_ = terms_.pressure && tau >= 0.0 ? scene_.pressure(tau) : 0.0;
+  static_shift_ = shift;
+  // The preconditioner's matrix: the symmetric positive definite part (the warped tangent,
+  // the cables, contact's diagonal blocks, the shift).
+  SymmetricBlockMatrix& system = *system_;
+  system.set_zero();
+  if (terms_.elastic) body_.assemble_tangent(rot_, 1.0, &system);
+  if (terms_.springs) add_cable_cliques(1.0);
+  if (contact_ && terms_.contact) {
+    contact_->add_diagonal_blocks(1.0, 0.0, &system);
+    contact_->linearize_exact(x);
+  }
+  system.add_diagonal(shift * mass_);
+  rot_at_factor_ = rot_;
+  node_rotation_current_ = false;
+  const double s = seconds_since(t0);
+  counters_.matrix_assembly_s += s;
+  counters_.assembly_s += s;
+  return {};
+}
+
+void ClosureIntegrator::multiply_static(const Eigen::VectorXd& pf, Eigen::VectorXd* y) {
+  for (size_t i = 0; i < free_dofs_.size(); ++i)
+    p_all_[free_dofs_[i]] = pf[static_cast<Eigen::Index>(i)];
+  y_all_.setZero();
+  if (terms_.elastic) body_.tangents_times(static_k_, p_all_, &y_all_);
+  if (terms_.springs) add_cable_products(p_all_, 1.0, &y_all_);
+  if (terms_.pressure) add_pressure_products(p_all_, &y_all_);
+  if (contact_ && terms_.contact) contact_->multiply_exact(p_all_, &y_all_);
+  y->resize(pf.size());
+  for (size_t i = 0; i < free_dofs_.size(); ++i) {
+    const int d = free_dofs_[i];
+    (*y)[static_cast<Eigen::Index>(i)] = y_all_[d] + static_shift_ * mass_dof_[d] * p_all_[d];
+  }
+}
+
+StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
+  const auto t0 = Clock::now();
+  if (contact_) contact_->set_friction(0.0);
+  if (!static_linear_) {
+    StepSolverOptions so = options_.solver;
+    so.kind = LinearSolver::kReusedFactorPcg;
+    so.rotated_preconditioner = false;
+    so.warm_start = false;
+    so.pcg_max_iterations = std::max(so.pcg_max_iterations, 50);
+    static_linear_.emplace(so);
+    static_linear_->set_threads(options_.threads);
+  }
+  const StepSolver::Stats before = static_linear_->stats();
+  StepSolver::System A{
+      [this](const Eigen::VectorXd& p, Eigen::VectorXd* y) { multiply_static(p, y); },
+      [this]() -> const Eigen::SparseMatrix<double>& { return system_->lower(); }, nullptr};
+  const Eigen::Index m = static_cast<Eigen::Index>(free_dofs_.size());
+  Eigen::VectorXd f, fp;
+  // The residual r = -f over the free dofs at x, its norm and the pressure load's norm.
+  auto residual_at = [&](const Eigen::VectorXd& x, Eigen::VectorXd* r, double* norm,
+                         double* load) -> StepOutcome {
+    if (StepOutcome o = static_forces(x, tau, &f, &fp); !o.ok()) return o;
+    r->resize(m);
+    double l2 = 0.0;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const int d = free_dofs_[static_cast<size_t>(i)];
+      (*r)[i] = -f[d];
+      l2 += fp[d] * fp[d];
+    }
+    *norm = r->norm();
+    if (load) *load = std::sqrt(l2);
+    return {};
+  };
+  auto finish_counters = [&](double rn, double load, int iterations) {
+    ClosureSummary& c = counters_;
+    c.static_iterations += iterations;
+    c.static_residual_n = rn;
+    c.static_relative_residual = load > 0 ? rn / load : rn;
+    c.static_s += seconds_since(t0);
+    const StepSolver::Stats& s = static_linear_->stats();
+    c.factorizations += s.factorizations - before.factorizations;
+    c.analyses += s.analyses - before.analyses;
+    c.pcg_iterations += s.pcg_iterations - before.pcg_iterations;
+    c.preconditioner_applications += s.applications - before.applications;
+    c.factorize_s += s.factorize_s - before.factorize_s;
+    c.precondition_s += s.apply_s - before.apply_s;
+    c.analyze_s += s.analyze_s - before.analyze_s;
+  };
+
+  Eigen::VectorXd x = state->x, r, rt, dx, xt;
+  double rn = 0.0, load = 0.0;
+  if (StepOutcome o = residual_at(x, &r, &rn, &load); !o.ok()) {
+    finish_counters(0.0, 0.0, 0);
+    o.message += " at the static solve's start";
+    return o;
+  }
+  counters_.static_history.push_back(rn);
+  const double target = options_.static_tolerance * std::max(load, 1e-300);
+  const double r0 = rn;
+  double mu = 0.0, mu_unit = 0.0;  // the shift, in units of K's mean diagonal over M's
+  bool linearized = true;          // the last static_forces() was at x
+  int it = 0, stalled = 0;
+  std::string why;
+  for (; rn > target && it < options_.static_max_iterations && stalled < kStaticStall; ++it) {
+    const double rn_before = rn;
+    if (!linearized) {
+      if (StepOutcome o = residual_at(x, &r, &rn, nullptr); !o.ok()) return o;
+      linearized = true;
+    }
+    if (StepOutcome o = assemble_static(x, tau, mu * mu_unit); !o.ok()) {
+      finish_counters(rn, load, it);
+      return o;
+    }
+    if (mu_unit == 0.0) {
+      double m_mean = 0.0;
+      for (int d : free_dofs_) m_mean += mass_dof_[d];
+      m_mean /= static_cast<double>(std::max<size_t>(free_dofs_.size(), 1));
+      mu_unit = system_->lower().diagonal().mean() / std::max(m_mean, 1e-300);
+    }
+    // Inexact Newton: the linear tolerance follows the residual (quadratic convergence near the
+    // solution), at most 0.1.
+    static_linear_->set_tolerance(std::clamp(rn / r0, 1e-10, 0.1));
+    const auto ts = Clock::now();
+    const double matrix_before = counters_.matrix_assembly_s;
+    const bool solved = static_linear_->solve_nonsymmetric(A, -r, &dx, &why);
+    counters_.solve_s += seconds_since(ts) - (counters_.matrix_assembly_s - matrix_before);
+    bool accepted = false;
+    double alpha = 1.0;
+    if (solved && dx.allFinite()) {
+      for (int ls = 0; ls < 6 && !accepted; ++ls, alpha *= 0.5) {
+        xt = x;
+        for (Eigen::Index i = 0; i < m; ++i)
+          xt[free_dofs_[static_cast<size_t>(i)]] += alpha * dx[i];
+        if (!check_trial(x, xt).ok()) continue;
+        double rtn = 0.0;
+        linearized = false;
+        if (!residual_at(xt, &rt, &rtn, nullptr).ok()) continue;
+        if (rtn < rn) {
+          accepted = true;
+          linearized = true;
+          x.swap(xt);
+          r.swap(rt);
+          rn = rtn;
+        }
+      }
+    }
+    counters_.static_history.push_back(rn);
+    ++counters_.newton_iterations;
+    stalled = rn > 0.9 * rn_before ? stalled + 1 : 0;
+    // A trust region by the shift: a full step relaxes it, a shortened one tightens it.
+    if (accepted && alpha >= 0.5) {  // a full step (alpha was halved after the accepted try)
+      mu = mu < 1e-5 ? 0.0 : mu / 4.0;
+    } else if (accepted) {
+      mu = std::max(4.0 * mu, 1e-4);
+    } else {
+      mu = std::max(10.0 * mu, 1e-3);
+      if (mu > 1e4) break;
+    }
+  }
+  finish_counters(rn, load, it);
+  if (!(rn <= target)) {
+    // The best state found (the residual only ever fell) is handed back without velocity: the
+    // caller may settle from there.
+    if (rn < r0) {
+      state->x = x;
+      state->v.setZero();
+    }
+    return failed(Outcome::kLinearSolver,
+                  "the static solve did not converge: residual " + std::to_string(rn) + " N (" +
+                      std::to_string(rn / std::max(load, 1e-300)) +
+                      " of the pressure load) after " + std::to_string(it) + " Newton iterations" +
+                      (stalled >= kStaticStall ? ", stalled" : "") +
+                      (why.empty() ? "" : " (" + why + ")"));
+  }
+  state->x = x;
+  state->v.setZero();
+  return {};
 }
 
 }  // namespace mvtwin::forward

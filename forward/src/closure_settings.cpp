@@ -81,6 +81,7 @@ const std::map<std::string, Field>& fields() {
     dbl("settle_mm", [](ClosureOptions& o) -> double& { return o.settle_mm; });
     dbl("settle_max_dt", [](ClosureOptions& o) -> double& { return o.settle_max_dt; });
     dbl("settle_max_s", [](ClosureOptions& o) -> double& { return o.settle_max_s; });
+    dbl("static_tolerance", [](ClosureOptions& o) -> double& { return o.static_tolerance; });
     dbl("density", [](ClosureOptions& o) -> double& { return o.density; });
     dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });
     dbl("rayleigh_stiffness", [](ClosureOptions& o) -> double& { return o.rayleigh_stiffness; });
@@ -103,6 +104,8 @@ const std::map<std::string, Field>& fields() {
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
     integer("settle_newton_iterations",
             [](ClosureOptions& o) -> int& { return o.settle_newton_iterations; });
+    integer("static_max_iterations",
+            [](ClosureOptions& o) -> int& { return o.static_max_iterations; });
     integer("pcg_max_iterations",
             [](ClosureOptions& o) -> int& { return o.solver.pcg_max_iterations; });
     integer("refactor_iterations",
@@ -118,6 +121,7 @@ const std::map<std::string, Field>& fields() {
     boolean("rotated_preconditioner",
             [](ClosureOptions& o) -> bool& { return o.solver.rotated_preconditioner; });
     boolean("warm_start", [](ClosureOptions& o) -> bool& { return o.solver.warm_start; });
+    boolean("static_rest", [](ClosureOptions& o) -> bool& { return o.static_rest; });
     boolean("curved", [](ClosureOptions& o) -> bool& { return o.model.curved; });
     boolean("contact", [](ClosureOptions& o) -> bool& { return o.contact.enabled; });
     boolean("contact_ccd", [](ClosureOptions& o) -> bool& { return o.contact.ccd; });
@@ -276,7 +280,12 @@ void apply_setting(const std::string& a, ClosureOptions* o, ValveParameters* p) 
 
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& o) {
   std::vector<std::pair<std::string, std::string>> out;
-  for (const auto& [n, f] : fields()) out.emplace_back(n, f.get(o));
+  for (const auto& [n, f] : fields()) {
+    // The static solve's options only where it is on: descriptions (result files, study
+    // folders' configurations) made before it existed stay the same.
+    if (!o.static_rest && n.rfind("static_", 0) == 0) continue;
+    out.emplace_back(n, f.get(o));
+  }
   return out;
 }
 
@@ -289,6 +298,12 @@ std::vector<std::pair<std::string, std::string>> result_options(
       std::find_if(out.begin(), out.end(), [](const auto& kv) { return kv.first == "settle_mm"; });
   if (settle == out.end() || !(std::strtod(settle->second.c_str(), nullptr) > 0)) {
     std::erase_if(out, [](const auto& kv) { return kv.first.rfind("settle_", 0) == 0; });
+  }
+  // Likewise the static solve's options while it is off (descriptions made before it existed).
+  const auto stat = std::find_if(out.begin(), out.end(),
+                                 [](const auto& kv) { return kv.first == "static_rest"; });
+  if (stat == out.end() || stat->second != "on") {
+    std::erase_if(out, [](const auto& kv) { return kv.first.rfind("static_", 0) == 0; });
   }
   return out;
 }

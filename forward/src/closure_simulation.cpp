@@ -78,6 +78,10 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("newton_iterations must be in 1..100");
   if (settle_newton_iterations < 1 || settle_newton_iterations > 100)
     return bad("settle_newton_iterations must be in 1..100");
+  if (!(static_tolerance > 0 && static_tolerance < 1))
+    return bad("static_tolerance must be in (0, 1) (a fraction of the pressure load)");
+  if (static_max_iterations < 1 || static_max_iterations > 1000)
+    return bad("static_max_iterations must be in 1..1000");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
   if (orifice_refine < 0 || orifice_refine > 8) return bad("orifice_refine must be in 0..8");
   if (max_step_halvings < 0 || max_step_halvings > 10)
@@ -151,6 +155,7 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
   const double T = scene.duration();
   int steps = 0, halvings_total = 0, rejected = 0, settle_steps = 0;
   double settle_s = 0.0, last_motion_mm = 0.0, orifice_s = 0.0;
+  std::string static_failure;
   auto finish = [&](Outcome outcome, std::string reason) {
     result.positions = state.x;
     integrator.finish(&result);
@@ -164,6 +169,7 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
     sum.settle_s = settle_s;
     sum.last_step_motion_mm = last_motion_mm;
     sum.orifice_s = orifice_s;
+    sum.static_failure = static_failure;
     sum.clip_phase_s = integrator.clip_phase_s();
     sum.wall_s = seconds_since(t_start);
     sum.other_s = sum.wall_s - sum.assembly_s - sum.solve_s - sum.contact_s;
@@ -232,7 +238,22 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
   }
   // Settling: the load held, steps doubling from dt, until a step moves the valve by less than
   // settle_mm. Implicit Euler's large steps are damped Newton steps toward the equilibrium.
-  if (opt.settle_mm > 0) {
+  // Or a static solve (Newton on the equilibrium under the held load); should it fail,
+  // settling, when on, takes over from its best state (the summary says why).
+  bool at_rest = false;
+  if (opt.static_rest) {
+    const StepOutcome o = integrator.solve_static(T, &state);
+    at_rest = o.ok();
+    if (!o.ok()) {
+      static_failure = o.message;
+      if (!(opt.settle_mm > 0)) {
+        result.samples.push_back(integrator.sample(T, state));
+        finish(o.outcome, o.message + " (static solve after the closure)");
+        return result;
+      }
+    }
+  }
+  if (opt.settle_mm > 0 && !at_rest) {
     integrator.disable_friction();
     integrator.set_newton_iterations(opt.settle_newton_iterations);
     double h = opt.dt;
@@ -312,6 +333,10 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"clip_phase_retries", s.clip_phase_retries},
                  {"last_step_motion_mm", s.last_step_motion_mm},
                  {"newton_iterations", s.newton_iterations},
+                 {"static_iterations", s.static_iterations},
+                 {"static_residual_n", s.static_residual_n},
+                 {"static_relative_residual", s.static_relative_residual},
+                 {"static_s", s.static_s},
                  {"dofs", s.dofs},
                  {"elements", s.elements},
                  {"wall_s", s.wall_s},

@@ -233,6 +233,69 @@ void ElasticBody::assemble_order(const std::vector<CorotationalTet<N>>& elems,
   }
 }
 
+template <int N>
+int ElasticBody::consistent_order(const std::vector<CorotationalTet<N>>& elems,
+                                  const Eigen::VectorXd& x, const ElementRotations& rot,
+                                  std::vector<Eigen::MatrixXd>* K) const {
+  typename CorotationalTet<N>::Nodes xe;
+  typename CorotationalTet<N>::Matrix Ke;
+  K->resize(elems.size());
+  for (int e = 0; e < static_cast<int>(elems.size()); ++e) {
+    for (int a = 0; a < N; ++a) xe.row(a) = x.segment<3>(3 * mesh_.T(e, a)).transpose();
+    if (!elems[e].evaluate(xe, nullptr, &Ke, nullptr)) return e;
+    if (guard_j0_ > 0.0 && !rot.guard_of_element.empty() && rot.guard_of_element[e] >= 0) {
+      // The guard's whole Hessian: k (phi'' dJ dJ^T + phi' d2J), d2J by central differences of
+      // the exact dJ (det F is cubic in the corners: the difference is exact up to round-off).
+      Eigen::Matrix<double, 12, 1> dJ, dp, dm;
+      const double J = elems[e].corner_jacobian(xe, &dJ);
+      const double j0 = guard_j0_, lg = std::log(J / j0), d = J - j0;
+      const double phi1 = -2.0 * d * lg - d * d / J;
+      const double phi2 = -2.0 * lg - 4.0 * d / J + d * d / (J * J);
+      Eigen::Matrix<double, 12, 12> d2J;
+      const double h = 1e-6 * std::max(1.0, xe.template topRows<4>().cwiseAbs().maxCoeff());
+      for (int j = 0; j < 12; ++j) {
+        typename CorotationalTet<N>::Nodes xp = xe, xm = xe;
+        xp(j / 3, j % 3) += h;
+        xm(j / 3, j % 3) -= h;
+        elems[e].corner_jacobian(xp, &dp);
+        elems[e].corner_jacobian(xm, &dm);
+        d2J.col(j) = (dp - dm) / (2 * h);
+      }
+      const double k = guard_scale_[e];
+      Ke.template topLeftCorner<12, 12>() +=
+          k * (phi2 * dJ * dJ.transpose() + phi1 * 0.5 * (d2J + d2J.transpose()));
+    }
+    (*K)[e] = Ke;
+  }
+  return -1;
+}
+
+int ElasticBody::consistent_tangents(const Eigen::VectorXd& x, const ElementRotations& rot,
+                                     std::vector<Eigen::MatrixXd>* K) const {
+  if (mesh_.order == TetOrder::kLinear) return consistent_order(linear_, x, rot, K);
+  return consistent_order(quadratic_, x, rot, K);
+}
+
+namespace {
+template <int N>
+void element_products(const SolidMesh& mesh, const std::vector<Eigen::MatrixXd>& K,
+                      const Eigen::VectorXd& p, Eigen::VectorXd* y) {
+  using Matrix = Eigen::Matrix<double, 3 * N, 3 * N>;
+  Eigen::Matrix<double, 3 * N, 1> pe, ye;
+  for (int e = 0; e < static_cast<int>(K.size()); ++e) {
+    for (int a = 0; a < N; ++a) pe.template segment<3>(3 * a) = p.segment<3>(3 * mesh.T(e, a));
+    ye.noalias() = Eigen::Map<const Matrix>(K[e].data()) * pe;
+    for (int a = 0; a < N; ++a) y->segment<3>(3 * mesh.T(e, a)) += ye.template segment<3>(3 * a);
+  }
+}
+}  // namespace
+
+void ElasticBody::tangents_times(const std::vector<Eigen::MatrixXd>& K, const Eigen::VectorXd& p,
+                                 Eigen::VectorXd* y) const {
+  if (mesh_.order == TetOrder::kLinear) return element_products<4>(mesh_, K, p, y);
+  element_products<10>(mesh_, K, p, y);
+}
+
 int ElasticBody::gradient(const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
                           double* energy, const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const {
   if (mesh_.order == TetOrder::kLinear) return gradient_order(linear_, x, g, rot, energy, p, Kp);

@@ -360,6 +360,7 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
         best[g].tri = s_.triangles[t];
         best[g].weights = w;
         best[g].normal = n;
+        best[g].outward = s_.triangle_outward[t];
         best[g].area = 0.5 * (b - a).cross(c - a).norm();
       }
     }
@@ -589,6 +590,65 @@ void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scal
     for (int a = 0; a < 4; ++a) jp += st.c[a] * p.segment<3>(3 * st.nodes[a]);
     const Eigen::Vector3d t = tangent_block(pr, scale_k, scale_c) * jp;
     for (int a = 0; a < 4; ++a) y->segment<3>(3 * st.nodes[a]) += st.c[a] * t;
+  }
+}
+
+namespace {
+// grad d of a vertex p over triangle (a, b, c) (12 entries: p, a, b, c), with the distance's
+// definition of closest_pairs(): signed by the face's outward side over the face, the plain
+// distance beyond an edge or a corner.
+Eigen::Matrix<double, 12, 1> distance_gradient(const Eigen::Matrix<double, 12, 1>& X,
+                                               signed char outward) {
+  const Eigen::Vector3d p = X.segment<3>(0), a = X.segment<3>(3), b = X.segment<3>(6),
+                        c = X.segment<3>(9);
+  const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+  const Eigen::Vector3d w = barycentric(q, a, b, c);
+  Eigen::Vector3d n;
+  if (w.minCoeff() > 1e-9) {
+    n = outward * (b - a).cross(c - a).normalized();
+  } else {
+    const double d = (p - q).norm();
+    n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
+  }
+  Eigen::Matrix<double, 12, 1> g;
+  g << n, -w[0] * n, -w[1] * n, -w[2] * n;
+  return g;
+}
+}  // namespace
+
+void SelfContact::linearize_exact(const Eigen::VectorXd& x) {
+  exact_.resize(pairs_.size());
+  constexpr double eps = 1e-6;  // mm
+  for (size_t i = 0; i < pairs_.size(); ++i) {
+    const Pair& pr = pairs_[i];
+    Eigen::Matrix<double, 12, 12>& K = exact_[i];
+    K.setZero();
+    if (pr.stiffness == 0.0 && pr.force == 0.0) continue;
+    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
+    Eigen::Matrix<double, 12, 1> X;
+    for (int a = 0; a < 4; ++a) X.segment<3>(3 * a) = x.segment<3>(3 * nodes[a]);
+    const Eigen::Matrix<double, 12, 1> g = distance_gradient(X, pr.outward);
+    Eigen::Matrix<double, 12, 12> hess;
+    for (int j = 0; j < 12; ++j) {
+      Eigen::Matrix<double, 12, 1> Xp = X, Xm = X;
+      Xp[j] += eps;
+      Xm[j] -= eps;
+      hess.col(j) =
+          (distance_gradient(Xp, pr.outward) - distance_gradient(Xm, pr.outward)) / (2 * eps);
+    }
+    // f = F(d) grad d, dF/dd = -stiffness: K = -df/dx = stiffness g g^T - F hess d.
+    K = pr.stiffness * g * g.transpose() - pr.force * 0.5 * (hess + hess.transpose());
+  }
+}
+
+void SelfContact::multiply_exact(const Eigen::VectorXd& p, Eigen::VectorXd* y) const {
+  for (size_t i = 0; i < pairs_.size() && i < exact_.size(); ++i) {
+    const Pair& pr = pairs_[i];
+    const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
+    Eigen::Matrix<double, 12, 1> pe;
+    for (int a = 0; a < 4; ++a) pe.segment<3>(3 * a) = p.segment<3>(3 * nodes[a]);
+    const Eigen::Matrix<double, 12, 1> ye = exact_[i] * pe;
+    for (int a = 0; a < 4; ++a) y->segment<3>(3 * nodes[a]) += ye.segment<3>(3 * a);
   }
 }
 

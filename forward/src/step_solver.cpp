@@ -485,6 +485,96 @@ bool StepSolver::factorize(const System& A, std::string* why) {
   return ok;
 }
 
+bool StepSolver::begin_solve(const Eigen::VectorXd& b, Eigen::VectorXd* x, std::string* why,
+                             bool* done) {
+  ++stats_.solves;
+  *done = true;
+  if (!b.allFinite()) {
+    *why = "non-finite right-hand side";
+    return false;
+  }
+  if (!(b.norm() > 0)) {
+    *x = Eigen::VectorXd::Zero(b.size());
+    return true;
+  }
+  *done = false;
+  return true;
+}
+
+bool StepSolver::solve_nonsymmetric(const System& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                                    std::string* why) {
+  bool done = false;
+  if (const bool ok = begin_solve(b, x, why, &done); done) return ok;
+  const double bnorm = b.norm();
+  bool fresh = false;
+  if (!impl_->have_factor || impl_->stale || opt_.kind != LinearSolver::kReusedFactorPcg) {
+    if (!factorize(A, why)) return false;
+    fresh = true;
+  }
+  auto precondition = [&](const Eigen::VectorXd& r) {
+    const auto t = Clock::now();
+    ++stats_.applications;
+    Eigen::VectorXd z = impl_->factor->apply(r);
+    stats_.apply_s += seconds_since(t);
+    return z;
+  };
+  const int m = opt_.pcg_max_iterations;
+  const double target = opt_.pcg_tolerance * bnorm;
+  // Flexible GMRES(m): the preconditioned directions Z are kept, so the update is sum y_j z_j.
+  auto gmres = [&](Eigen::VectorXd* xk, int* iterations) {
+    xk->setZero(b.size());
+    Eigen::VectorXd r = b;
+    *iterations = 0;
+    for (int cycle = 0; cycle < 3 && r.norm() > target; ++cycle) {
+      const double beta = r.norm();
+      std::vector<Eigen::VectorXd> V{r / beta}, Z;
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m + 1, m);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(m + 1), cs(m), sn(m);
+      g[0] = beta;
+      int j = 0;
+      for (; j < m; ++j) {
+        ++*iterations;
+        Z.push_back(precondition(V[j]));
+        Eigen::VectorXd w;
+        A.multiply(Z[j], &w);
+        for (int i = 0; i <= j; ++i) {
+          H(i, j) = w.dot(V[i]);
+          w -= H(i, j) * V[i];
+        }
+        H(j + 1, j) = w.norm();
+        for (int i = 0; i < j; ++i) {  // the earlier rotations on the new column
+          const double t = cs[i] * H(i, j) + sn[i] * H(i + 1, j);
+          H(i + 1, j) = -sn[i] * H(i, j) + cs[i] * H(i + 1, j);
+          H(i, j) = t;
+        }
+        const double d = std::hypot(H(j, j), H(j + 1, j));
+        cs[j] = d > 0 ? H(j, j) / d : 1.0;
+        sn[j] = d > 0 ? H(j + 1, j) / d : 0.0;
+        const double hj1 = H(j + 1, j);
+        H(j, j) = d;
+        H(j + 1, j) = 0.0;
+        g[j + 1] = -sn[j] * g[j];
+        g[j] = cs[j] * g[j];
+        const bool reached = std::abs(g[j + 1]) <= target || !(hj1 > 1e-300 * beta);
+        if (!reached) V.push_back(w / hj1);
+        if (reached) {
+          ++j;
+          break;
+        }
+      }
+      const Eigen::VectorXd y =
+          H.topLeftCorner(j, j).triangularView<Eigen::Upper>().solve(g.head(j));
+      for (int i = 0; i < j; ++i) *xk += y[i] * Z[i];
+      Eigen::VectorXd Ax;
+      A.multiply(*xk, &Ax);
+      r = b - Ax;
+    }
+    stats_.pcg_iterations += *iterations;
+    return r.norm() <= target && xk->allFinite();
+  };
+  return iterate(A, gmres, &fresh, x, why);
+}
+
 bool StepSolver::solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b,
                        Eigen::VectorXd* x, std::string* why) {
   Eigen::SparseMatrix<double> lower = A.triangularView<Eigen::Lower>();
@@ -496,16 +586,9 @@ bool StepSolver::solve(const Eigen::SparseMatrix<double>& A, const Eigen::Vector
 
 bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
                        std::string* why) {
-  ++stats_.solves;
-  if (!b.allFinite()) {
-    *why = "non-finite right-hand side";
-    return false;
-  }
+  bool done = false;
+  if (const bool ok = begin_solve(b, x, why, &done); done) return ok;
   const double bnorm = b.norm();
-  if (!(bnorm > 0)) {
-    *x = Eigen::VectorXd::Zero(b.size());
-    return true;
-  }
   // Warm start: the best combination of the caller's guesses (earlier steps' updates) in A's
   // energy; the answer when it already meets the tolerance (no factorization, no preconditioner
   // application: the stale flag stays for the next solve).
@@ -600,14 +683,19 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
     stats_.pcg_iterations += *iterations;
     return r.norm() <= opt_.pcg_tolerance * bnorm && xk->allFinite();
   };
+  return iterate(A, pcg, &fresh, x, why);
+}
+
+bool StepSolver::iterate(const System& A, const Iteration& run, bool* fresh, Eigen::VectorXd* x,
+                         std::string* why) {
   Eigen::VectorXd xk;
   int iterations = 0;
-  bool converged = pcg(&xk, &iterations);
-  if (!converged && !fresh) {
+  bool converged = run(&xk, &iterations);
+  if (!converged && !*fresh) {
     ++stats_.pcg_fallbacks;
     if (!factorize(A, why)) return false;
-    fresh = true;
-    converged = pcg(&xk, &iterations);
+    *fresh = true;
+    converged = run(&xk, &iterations);
   }
   if (!xk.allFinite()) {
     *why = "linear solver returned non-finite values";
@@ -615,9 +703,10 @@ bool StepSolver::solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorX
   }
   if (!converged) {
     // A fresh factorization and the iteration cap were not enough (stiff couplings the
-    // factorization leaves out): keep the last iterate, which CG has only improved, and count it.
+    // factorization leaves out): keep the last iterate, which the iteration has only improved,
+    // and count it.
     ++stats_.unconverged;
-  } else if (opt_.kind == LinearSolver::kReusedFactorPcg && !fresh &&
+  } else if (opt_.kind == LinearSolver::kReusedFactorPcg && !*fresh &&
              iterations >= opt_.refactor_iterations) {
     impl_->stale = true;
   }

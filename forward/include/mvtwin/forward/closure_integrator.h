@@ -68,6 +68,34 @@ class ClosureIntegrator {
   /// linearizations, then the checks of the trial step (finite, no inverted element, no node
   /// through a leaflet surface). On failure `state` is left unchanged.
   StepOutcome step(double tau, double h, ValveState* state);
+  /// The static equilibrium at simulated time tau (the pressure and the prescribed nodes held
+  /// where they are at tau; contact without friction) from state->x, by Newton's method
+  /// (ClosureOptions::static_rest): each iteration solves (K + mu M) dx = -r, K the tangent of
+  /// every force (the consistent co-rotational tangent with the rotations' derivative and the
+  /// inversion guard, chordae and clips, the follower pressure, all exact and not symmetric;
+  /// contact's Gauss-Newton stiffness), by GMRES preconditioned by a Cholesky factorization of
+  /// its symmetric positive definite part (the warped tangent, reused while it serves), to a
+  /// tolerance that tightens with the residual; then halves dx until the residual falls with no
+  /// element inverted and no node through a leaflet along the way. mu (a Levenberg shift on the
+  /// mass) is 0 while full steps succeed and grows when no step lowers the residual. Converged
+  /// when |r| <= static_tolerance |pressure load| (2-norms over the free dofs); given up after
+  /// static_max_iterations, or when kStaticStall iterations in a row lower the residual by less
+  /// than 10 %. On success state->x is the rest state and state->v zero; on failure state->x is
+  /// the state of the lowest residual (v zero) when it is below the start's, else unchanged.
+  /// The residual history, the iterations and the time are in counters().
+  StepOutcome solve_static(double tau, ValveState* state);
+  static constexpr int kStaticStall = 4;
+  /// Forces (N, all dofs) of the static problem at positions x and time tau: minus the elastic
+  /// gradient, chordae and clips, contact without friction and the pressure (whose part alone
+  /// goes to *pressure when not null); keeps each term's linearization for the static tangent.
+  StepOutcome static_forces(const Eigen::VectorXd& x, double tau, Eigen::VectorXd* f,
+                            Eigen::VectorXd* pressure = nullptr);
+  /// Linearizes the static tangent (K + shift M) at x after static_forces() at x (its
+  /// preconditioner's matrix into the step matrix); then y = (K + shift M) p over the free dofs
+  /// with every coupling, for tests against finite differences of static_forces().
+  StepOutcome assemble_static(const Eigen::VectorXd& x, double tau, double shift);
+  void multiply_static(const Eigen::VectorXd& p, Eigen::VectorXd* y);
+
   /// The local error estimate of a step from `before` to `after` of size h: h/2 times the
   /// largest change of a free node's velocity, mm (StepSizeControl).
   double local_error(const ValveState& before, const ValveState& after, double h) const;
@@ -145,6 +173,15 @@ class ClosureIntegrator {
     int clip = -1;           // the clip of a spring
   };
   double cable_rest(size_t c, double tau) const;
+  int force_pass(const Eigen::VectorXd& x, const Eigen::VectorXd& v, const Eigen::VectorXd* p,
+                 Eigen::VectorXd* g, Eigen::VectorXd* Kp, Eigen::VectorXd* fc, double* contact_s);
+  void add_cable_forces(const Eigen::VectorXd& x, double tau, Eigen::VectorXd* f);
+  void add_pressure_forces(const Eigen::VectorXd& x, double tau, Eigen::VectorXd* f) const;
+  /// y += s K_cables p (all dofs) at the last linearization.
+  void add_cable_products(const Eigen::VectorXd& p, double s, Eigen::VectorXd* y) const;
+  /// y += K_pressure p (all dofs): the follower pressure's tangent at the last assemble_static().
+  void add_pressure_products(const Eigen::VectorXd& p, Eigen::VectorXd* y) const;
+  void add_cable_cliques(double s);  ///< the cables' tangents, times s, into the step matrix
   Eigen::Vector3d mean_of(const std::vector<int>& nodes, const Eigen::VectorXd& at) const;
   const Eigen::SparseMatrix<double>& assemble_lower();
   void rotate(Eigen::VectorXd* v, bool transpose);
@@ -184,6 +221,13 @@ class ClosureIntegrator {
   std::vector<Eigen::Matrix3d> node_rotation_;
   bool node_rotation_current_ = false;
   Eigen::VectorXd residual_, p_all_, y_all_;
+
+  // The static solve's tangent at the last assemble_static(): each element's consistent
+  // tangent, the positions and pressure of the follower load's, the shift; its linear solver.
+  std::vector<Eigen::MatrixXd> static_k_;
+  Eigen::VectorXd static_x_;
+  double static_pressure_ = 0.0, static_shift_ = 0.0;
+  std::optional<StepSolver> static_linear_;
 
   ClosureSummary counters_;
 };

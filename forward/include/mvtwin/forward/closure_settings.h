@@ -28,7 +28,8 @@ void apply_setting(const std::string& assignment, ClosureOptions* options,
 bool is_option_name(const std::string& name);
 bool is_parameter_name(const std::string& name);
 
-/// Every settable option with its current value, as text (for reports and result files).
+/// Every settable option with its current value, as text (for reports and result files); the
+/// static solve's (static_rest, static_*) only when static_rest is on.
 std::vector<std::pair<std::string, std::string>> describe_options(const ClosureOptions& options);
 /// Whether an option can change a simulation's result (threads cannot).
 bool affects_results(const std::string& option_name);

@@ -59,6 +59,19 @@ struct ClosureOptions {
   /// Newton iterations per settling step (up to newton_tolerance): with one, patient 4's large
   /// steps still moved 0.32 mm each after 5 s; with 3 it stopped after 2 s (forward-status.md).
   int settle_newton_iterations = 3;
+  /// The closed valve at rest by a static solve instead of settling: after the closure, Newton
+  /// iterations on the static equilibrium under the held peak pressure and boundary (the
+  /// consistent co-rotational tangent with the rotations' derivative, symmetrized, the follower
+  /// pressure's tangent, symmetrized, the chordae's Hessian, frictionless contact's Gauss-Newton
+  /// stiffness), a line search that keeps every element uninverted and no node through a
+  /// leaflet (continuous collision detection along the update), and a Levenberg shift on the
+  /// mass when the tangent is not positive definite or the step does not lower the residual
+  /// (ClosureIntegrator::solve_static). Off: settling (settle_mm).
+  bool static_rest = false;
+  /// Converged when the free nodes' residual force (2-norm) is below this fraction of the
+  /// pressure load's (2-norm over the same nodes).
+  double static_tolerance = 1e-6;
+  int static_max_iterations = 40;   ///< Newton iterations before the static solve gives up
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
@@ -131,6 +144,14 @@ struct ClosureSummary {
   /// Largest motion of a free node over the last step, mm (at rest: below settle_mm).
   double last_step_motion_mm = 0;
   int newton_iterations = 0;
+  /// The static solve (static_rest): Newton iterations, the residual force at the end (N,
+  /// 2-norm over the free nodes) and as a fraction of the pressure load, its history (one entry
+  /// per iteration, the start first), and its wall time (in wall_s).
+  int static_iterations = 0;
+  double static_residual_n = 0, static_relative_residual = 0, static_s = 0;
+  std::vector<double> static_history;
+  /// Why the static solve failed (settling then brought the valve to rest), or empty.
+  std::string static_failure;
   int dofs = 0, elements = 0;
   double wall_s = 0, assembly_s = 0, solve_s = 0, contact_s = 0, other_s = 0;
   int contacts = 0;          ///< vertex-triangle pairs in contact at the end

@@ -75,6 +75,15 @@ class ElasticBody {
 
   /// First element whose corner tetrahedron is inverted or flat at x (det F <= 0), or -1.
   int first_inverted(const Eigen::VectorXd& x) const;
+  /// Each element's consistent tangent at x (CorotationalTet::evaluate's, with the rotations'
+  /// derivative: not symmetric) plus the inversion guard's Gauss-Newton term from rot (the
+  /// gradient() at the same x): the static solve's tangent, for tangents_times(). Returns the
+  /// first inverted element or -1.
+  int consistent_tangents(const Eigen::VectorXd& x, const ElementRotations& rot,
+                          std::vector<Eigen::MatrixXd>* K) const;
+  /// y += sum over the elements of K_e p_e (all dofs) for per-element tangents K.
+  void tangents_times(const std::vector<Eigen::MatrixXd>& K, const Eigen::VectorXd& p,
+                      Eigen::VectorXd* y) const;
   /// y += K p with K the warped tangent at the rotations' positions (all dofs).
   void tangent_times(const ElementRotations& rot, const Eigen::VectorXd& p,
                      Eigen::VectorXd* y) const;
@@ -98,6 +107,9 @@ class ElasticBody {
                      const Eigen::VectorXd& x, Eigen::VectorXd* g, ElementRotations* rot,
                      std::vector<ElementRotations::Guard>* guards, double* energy,
                      const Eigen::VectorXd* p, Eigen::VectorXd* Kp) const;
+  template <int N>
+  int consistent_order(const std::vector<CorotationalTet<N>>& elems, const Eigen::VectorXd& x,
+                       const ElementRotations& rot, std::vector<Eigen::MatrixXd>* K) const;
   template <int N>
   void tangent_times_range(const std::vector<CorotationalTet<N>>& elems, int e0, int e1,
                            const ElementRotations& rot, const Eigen::VectorXd& p,

@@ -77,6 +77,7 @@ class SelfContact {
     Eigen::Vector3d weights;  ///< barycentric weights of the closest point
     Eigen::Vector3d normal;   ///< direction that separates them (on the vertex's side)
     double distance;          ///< signed: negative once the vertex is through the triangle
+    signed char outward = 1;  ///< the triangle's Surface::triangle_outward
     double area;              ///< surface area the vertex stands for, mm^2
     // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
     // (N s/mm) and the tangential slip direction's projector is I - n n^T.
@@ -120,6 +121,14 @@ class SelfContact {
   /// y += (scale_k K + scale_c D) p over all nodes' dofs, with every coupling (K: Gauss-Newton
   /// contact stiffness, D: friction damping, at the last add_forces()).
   void multiply(const Eigen::VectorXd& p, double scale_k, double scale_c, Eigen::VectorXd* y) const;
+  /// The exact stiffness of each pair found by the last add_forces() at positions x (the static
+  /// solve's): minus the derivative of its normal force F(d) grad d, i.e. the Gauss-Newton
+  /// term plus -F(d) times the distance's Hessian (the normal's rotation; a central difference
+  /// of the exact grad d, 1e-6 mm). The pair stiffness k is held at its area (not
+  /// differentiated). Without friction. For multiply_exact().
+  void linearize_exact(const Eigen::VectorXd& x);
+  /// y += K p over all nodes' dofs with the exact pair stiffnesses of linearize_exact().
+  void multiply_exact(const Eigen::VectorXd& p, Eigen::VectorXd* y) const;
   /// Adds the node-diagonal 3x3 blocks of scale_k K + scale_c D to A.
   void add_diagonal_blocks(double scale_k, double scale_c, SymmetricBlockMatrix* A) const;
   /// add_forces() and, as triplets over node dofs, scale_k K + scale_c D with every coupling
@@ -163,6 +172,7 @@ class SelfContact {
   double stiffness_per_area_ = 0.0, max_depth_mm_ = 0.0;
   Surface s_;
   std::vector<Pair> pairs_;
+  std::vector<Eigen::Matrix<double, 12, 12>> exact_;  // per pair, from linearize_exact()
   // Per triangle, in the unrolled plane: the centre of its corners, and the squared
   // centre-to-vertex distances below which every corner (inside2) and above which no corner
   // (outside2) is within the exclusion distance of the vertex; between them excluded() looks

@@ -111,10 +111,21 @@ class StepSolver {
 
   /// x = A^-1 b. False with a reason (not positive definite, non-finite) on failure.
   bool solve(const System& A, const Eigen::VectorXd& b, Eigen::VectorXd* x, std::string* why);
+  /// x = A^-1 b for a nonsymmetric A (System::multiply; System::lower is the lower triangle of
+  /// a symmetric positive definite approximation of it): flexible GMRES, restarted every
+  /// pcg_max_iterations, right-preconditioned by the factorization of the approximation, kept
+  /// over solves and redone under the same rules as solve()'s (refactor_iterations). False
+  /// with a reason when the approximation is not positive definite or the result not finite;
+  /// a solve that stops above the tolerance after two restarts keeps its last iterate (counted
+  /// as unconverged).
+  bool solve_nonsymmetric(const System& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
+                          std::string* why);
   /// The same for a full (both triangles) symmetric matrix.
   bool solve(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd* x,
              std::string* why);
   const Stats& stats() const { return stats_; }
+  /// Changes the relative tolerance of the next solves (a Newton method's forcing term).
+  void set_tolerance(double pcg_tolerance) { opt_.pcg_tolerance = pcg_tolerance; }
   /// Threads of a factorization and a preconditioner application (1 or 2; results do not
   /// depend on it): with the single-precision preconditioner, the supernodal factorization and
   /// substitutions run in two parts at once with 2.
@@ -122,6 +133,15 @@ class StepSolver {
 
  private:
   bool factorize(const System& A, std::string* why);
+  /// Counts a solve and answers a right-hand side that needs no iteration (*done): false for a
+  /// non-finite b (with *why), x = 0 for b = 0.
+  bool begin_solve(const Eigen::VectorXd& b, Eigen::VectorXd* x, std::string* why, bool* done);
+  /// One Krylov iteration to the tolerance: the iterate and the iterations it took; converged?
+  using Iteration = std::function<bool(Eigen::VectorXd* x, int* iterations)>;
+  /// Runs it, again after a fresh factorization when it fails with a reused one, and marks the
+  /// factorization stale when it took refactor_iterations or more.
+  bool iterate(const System& A, const Iteration& run, bool* fresh, Eigen::VectorXd* x,
+               std::string* why);
   struct Impl;
   std::unique_ptr<Impl> impl_;
   StepSolverOptions opt_;
