@@ -369,6 +369,7 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
       if (b.distance < opt_.alarm_mm) {
         // A free-edge vertex pressed edge-on against a face stands for little area of its own;
         // the face it presses on carries the load, so the larger of the two areas sets k.
+        b.area_from_triangle = b.area >= s_.vertex_area[i];
         b.area = std::max(b.area, s_.vertex_area[i]);
         pairs->push_back(b);
       }
@@ -638,6 +639,17 @@ void SelfContact::linearize_exact(const Eigen::VectorXd& x) {
     }
     // f = F(d) grad d, dF/dd = -stiffness: K = -df/dx = stiffness g g^T - F hess d.
     K = pr.stiffness * g * g.transpose() - pr.force * 0.5 * (hess + hess.transpose());
+    if (pr.area_from_triangle && pr.area > 0) {
+      // F is proportional to k = stiffness_per_area x the triangle's area A: the term
+      // -(F / A) g grad A^T, with grad A = N/2 x (c - b), N/2 x (a - c), N/2 x (b - a) (N the
+      // unit normal) over the triangle's corners.
+      const Eigen::Vector3d a = X.segment<3>(3), b = X.segment<3>(6), c = X.segment<3>(9);
+      const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+      Eigen::Matrix<double, 12, 1> gA;
+      gA << Eigen::Vector3d::Zero(), 0.5 * n.cross(c - b), 0.5 * n.cross(a - c),
+          0.5 * n.cross(b - a);
+      K -= (pr.force / pr.area) * g * gA.transpose();
+    }
   }
 }
 

@@ -72,13 +72,14 @@ struct SelfContactOptions {
 class SelfContact {
  public:
   struct Pair {
-    int vertex;               ///< node index
-    std::array<int, 3> tri;   ///< node indices
-    Eigen::Vector3d weights;  ///< barycentric weights of the closest point
-    Eigen::Vector3d normal;   ///< direction that separates them (on the vertex's side)
-    double distance;          ///< signed: negative once the vertex is through the triangle
-    signed char outward = 1;  ///< the triangle's Surface::triangle_outward
-    double area;              ///< surface area the vertex stands for, mm^2
+    int vertex;                       ///< node index
+    std::array<int, 3> tri;           ///< node indices
+    Eigen::Vector3d weights;          ///< barycentric weights of the closest point
+    Eigen::Vector3d normal;           ///< direction that separates them (on the vertex's side)
+    double distance;                  ///< signed: negative once the vertex is through the triangle
+    signed char outward = 1;          ///< the triangle's Surface::triangle_outward
+    bool area_from_triangle = false;  ///< `area` is the triangle's (not the vertex's)
+    double area;                      ///< surface area the vertex stands for, mm^2
     // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
     // (N s/mm) and the tangential slip direction's projector is I - n n^T.
     double force = 0, stiffness = 0, eta = 0;
@@ -124,8 +125,8 @@ class SelfContact {
   /// The exact stiffness of each pair found by the last add_forces() at positions x (the static
   /// solve's): minus the derivative of its normal force F(d) grad d, i.e. the Gauss-Newton
   /// term plus -F(d) times the distance's Hessian (the normal's rotation; a central difference
-  /// of the exact grad d, 1e-6 mm). The pair stiffness k is held at its area (not
-  /// differentiated). Without friction. For multiply_exact().
+  /// of the exact grad d, 1e-6 mm) plus, where the triangle's area sets the pair stiffness k,
+  /// the force's change with that area. Not symmetric. Without friction. For multiply_exact().
   void linearize_exact(const Eigen::VectorXd& x);
   /// y += K p over all nodes' dofs with the exact pair stiffnesses of linearize_exact().
   void multiply_exact(const Eigen::VectorXd& p, Eigen::VectorXd* y) const;
