@@ -725,7 +725,10 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   for (; rn > target && it < options_.static_max_iterations && stalled < kStaticStall; ++it) {
     const double rn_before = rn;
     if (!linearized) {
-      if (StepOutcome o = residual_at(x, &r, &rn, nullptr); !o.ok()) return o;
+      if (StepOutcome o = residual_at(x, &r, &rn, nullptr); !o.ok()) {
+        finish_counters(rn, load, it);
+        return o;
+      }
       linearized = true;
     }
     if (StepOutcome o = assemble_static(x, tau, mu * mu_unit); !o.ok()) {
