@@ -717,13 +717,14 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   }
   counters_.static_history.push_back(rn);
   const double target = options_.static_tolerance * std::max(load, 1e-300);
+  const double step_target_n = kStaticStepResidual * std::max(load, 1e-300);
   const double r0 = rn;
   double mu = 0.0, mu_unit = 0.0;  // the shift, in units of K's mean diagonal over M's
   bool linearized = true;          // the last static_forces() was at x
-  int it = 0, stalled = 0;
+  bool converged = rn <= target;
+  int it = 0;
   std::string why;
-  for (; rn > target && it < options_.static_max_iterations && stalled < kStaticStall; ++it) {
-    const double rn_before = rn;
+  for (; !converged && it < options_.static_max_iterations; ++it) {
     if (!linearized) {
       if (StepOutcome o = residual_at(x, &r, &rn, nullptr); !o.ok()) {
         finish_counters(rn, load, it);
@@ -748,33 +749,61 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
     const double matrix_before = counters_.matrix_assembly_s;
     const bool solved = static_linear_->solve_nonsymmetric(A, -r, &dx, &why);
     counters_.solve_s += seconds_since(ts) - (counters_.matrix_assembly_s - matrix_before);
-    bool accepted = false;
-    double alpha = 1.0;
-    if (solved && dx.allFinite()) {
-      for (int ls = 0; ls < 6 && !accepted; ++ls, alpha *= 0.5) {
-        xt = x;
-        for (Eigen::Index i = 0; i < m; ++i)
-          xt[free_dofs_[static_cast<size_t>(i)]] += alpha * dx[i];
-        if (!check_trial(x, xt).ok()) continue;
-        double rtn = 0.0;
-        linearized = false;
-        if (!residual_at(xt, &rt, &rtn, nullptr).ok()) continue;
-        if (rtn < rn) {
-          accepted = true;
-          linearized = true;
-          x.swap(xt);
-          r.swap(rt);
-          rn = rtn;
-        }
+    // The line search on the energy's slope along dx, phi(s) = r(x + s dx) . dx (the residual
+    // is the energy's gradient but for the follower pressure's small nonconservative part):
+    // phi(0) < 0 for a descent direction; a step is taken where |phi| has fallen to 0.9 of
+    // |phi(0)| (or phi is still negative at the full step), the next trial by the secant
+    // through phi(0) and phi(s). Not on |r|: the membrane's stiff in-plane dofs make |r| rise
+    // along a right step across the soft out-of-plane modes, so a search on |r| crawls
+    // (docs/forward-status.md). Every trial keeps the elements uninverted and no node through a
+    // leaflet (check_trial); the last admissible trial is taken when none satisfies the test.
+    // Along a direction that does not descend, halving until |r| falls.
+    const bool usable = solved && dx.allFinite();
+    const double phi0 = usable ? r.dot(dx) : 0.0;
+    const bool descends = phi0 < 0.0;
+    double s = 1.0, taken = 0.0;
+    for (int ls = 0; usable && ls < kStaticLineSearch; ++ls) {
+      xt = x;
+      for (Eigen::Index i = 0; i < m; ++i) xt[free_dofs_[static_cast<size_t>(i)]] += s * dx[i];
+      double rtn = 0.0;
+      linearized = false;
+      if (!check_trial(x, xt).ok() || !residual_at(xt, &rt, &rtn, nullptr).ok()) {
+        s *= 0.5;
+        continue;
       }
+      // A trial that lowers |r| is always taken (Newton's own test: near the solution the slope
+      // r . dx is round-off); otherwise, along a descent direction, the slope's test.
+      const double phi = rt.dot(dx);
+      const bool slope_ok = descends && (phi < 0.0 || std::abs(phi) <= 0.9 * std::abs(phi0) ||
+                                         ls + 1 == kStaticLineSearch);
+      if (rtn < rn || slope_ok) {
+        taken = s;
+        linearized = true;
+        x.swap(xt);
+        r.swap(rt);
+        rn = rtn;
+        break;
+      }
+      s = descends ? std::clamp(s * phi0 / (phi0 - phi), 0.1 * s, 0.9 * s) : 0.5 * s;
     }
     counters_.static_history.push_back(rn);
     ++counters_.newton_iterations;
-    stalled = rn > 0.9 * rn_before ? stalled + 1 : 0;
-    // A trust region by the shift: a full step relaxes it, a shortened one tightens it.
-    if (accepted && alpha >= 0.5) {  // a full step (alpha was halved after the accepted try)
+    const double step_mm = taken * (dx.size() ? dx.lpNorm<Eigen::Infinity>() : 0.0);
+    counters_.static_step_mm = step_mm;
+    // Converged on the force residual, or (contact's closest features switch between facets,
+    // which leaves a residual Newton cannot lower by more than a little per step) on a full
+    // Newton step that moved no node by more than static_step_mm with the residual below
+    // kStaticStepResidual of the load.
+    const double newton_mm = usable ? dx.lpNorm<Eigen::Infinity>() : 1e300;
+    converged = rn <= target ||
+                (taken > 0.0 && newton_mm <= options_.static_step_mm && rn <= step_target_n);
+    // The Levenberg shift as a trust region: a full step relaxes it, a short one or a
+    // direction that does not descend tightens it.
+    if (taken == 1.0) {
       mu = mu < 1e-5 ? 0.0 : mu / 4.0;
-    } else if (accepted) {
+    } else if (taken >= 0.25) {
+      // keep
+    } else if (taken > 0.0) {
       mu = std::max(4.0 * mu, 1e-4);
     } else {
       mu = std::max(10.0 * mu, 1e-3);
@@ -782,19 +811,17 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
     }
   }
   finish_counters(rn, load, it);
-  if (!(rn <= target)) {
-    // The best state found (the residual only ever fell) is handed back without velocity: the
-    // caller may settle from there.
-    if (rn < r0) {
-      state->x = x;
-      state->v.setZero();
-    }
+  if (!converged) {
+    // The last state (the energy only fell along the way) is handed back without velocity:
+    // the caller may settle from there.
+    state->x = x;
+    state->v.setZero();
     return failed(Outcome::kLinearSolver,
                   "the static solve did not converge: residual " + std::to_string(rn) + " N (" +
                       std::to_string(rn / std::max(load, 1e-300)) +
-                      " of the pressure load) after " + std::to_string(it) + " Newton iterations" +
-                      (stalled >= kStaticStall ? ", stalled" : "") +
-                      (why.empty() ? "" : " (" + why + ")"));
+                      " of the pressure load) after " + std::to_string(it) +
+                      " Newton iterations, last step " + std::to_string(counters_.static_step_mm) +
+                      " mm" + (why.empty() ? "" : " (" + why + ")"));
   }
   state->x = x;
   state->v.setZero();

@@ -82,6 +82,8 @@ const std::map<std::string, Field>& fields() {
     dbl("settle_max_dt", [](ClosureOptions& o) -> double& { return o.settle_max_dt; });
     dbl("settle_max_s", [](ClosureOptions& o) -> double& { return o.settle_max_s; });
     dbl("static_tolerance", [](ClosureOptions& o) -> double& { return o.static_tolerance; });
+    dbl("static_step_mm", [](ClosureOptions& o) -> double& { return o.static_step_mm; });
+    dbl("static_start_mm", [](ClosureOptions& o) -> double& { return o.static_start_mm; });
     dbl("density", [](ClosureOptions& o) -> double& { return o.density; });
     dbl("rayleigh_mass", [](ClosureOptions& o) -> double& { return o.rayleigh_mass; });
     dbl("rayleigh_stiffness", [](ClosureOptions& o) -> double& { return o.rayleigh_stiffness; });

@@ -80,6 +80,10 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("settle_newton_iterations must be in 1..100");
   if (!(static_tolerance > 0 && static_tolerance < 1))
     return bad("static_tolerance must be in (0, 1) (a fraction of the pressure load)");
+  if (!(static_step_mm >= 0 && static_step_mm <= 1))
+    return bad("static_step_mm must be in [0, 1] mm");
+  if (!(static_start_mm >= 0 && static_start_mm <= 10))
+    return bad("static_start_mm must be in [0, 10] mm (0: Newton from the closure's end)");
   if (static_max_iterations < 1 || static_max_iterations > 1000)
     return bad("static_max_iterations must be in 1..1000");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
@@ -236,24 +240,10 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
       while (next_record <= tau + 1e-9) next_record += record_interval;
     }
   }
-  // Settling: the load held, steps doubling from dt, until a step moves the valve by less than
-  // settle_mm. Implicit Euler's large steps are damped Newton steps toward the equilibrium.
-  // Or a static solve (Newton on the equilibrium under the held load); should it fail,
-  // settling, when on, takes over from its best state (the summary says why).
-  bool at_rest = false;
-  if (opt.static_rest) {
-    const StepOutcome o = integrator.solve_static(T, &state);
-    at_rest = o.ok();
-    if (!o.ok()) {
-      static_failure = o.message;
-      if (!(opt.settle_mm > 0)) {
-        result.samples.push_back(integrator.sample(T, state));
-        finish(o.outcome, o.message + " (static solve after the closure)");
-        return result;
-      }
-    }
-  }
-  if (opt.settle_mm > 0 && !at_rest) {
+  // Settling: the load held, steps doubling from dt, until a full-size step moves the valve by
+  // less than `until_mm`. Implicit Euler's large steps are damped Newton steps toward the
+  // equilibrium. Returns false (the result finished as failed) when a step fails.
+  auto settle = [&](double until_mm) {
     integrator.disable_friction();
     integrator.set_newton_iterations(opt.settle_newton_iterations);
     double h = opt.dt;
@@ -266,7 +256,7 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
         finish(o.outcome, o.message + " while settling, " + std::to_string(settle_s) +
                               " s after the closure (after " + std::to_string(halvings) +
                               " step halvings)");
-        return result;
+        return false;
       }
       settle_s += h;
       ++steps;
@@ -274,10 +264,29 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
       last_motion_mm = integrator.largest_motion(before, state);
       // At rest: a full-size step (a small one moves little even while the valve creeps).
       const double h_max = std::max(opt.settle_max_dt, opt.dt);
-      if (h >= h_max - 1e-12 && last_motion_mm < opt.settle_mm) break;
+      if (h >= h_max - 1e-12 && last_motion_mm < until_mm) break;
       if (halvings == 0) h = std::min(2.0 * h, h_max);
     }
+    return true;
+  };
+  // Or a static solve (Newton on the equilibrium under the held load), from the closure's end
+  // or, with static_start_mm, after settling to that motion per step; should it fail,
+  // settling, when on, takes over from where it stopped (the summary says why).
+  bool at_rest = false;
+  if (opt.static_rest) {
+    if (opt.static_start_mm > 0 && !settle(opt.static_start_mm)) return result;
+    const StepOutcome o = integrator.solve_static(T, &state);
+    at_rest = o.ok();
+    if (!o.ok()) {
+      static_failure = o.message;
+      if (!(opt.settle_mm > 0)) {
+        result.samples.push_back(integrator.sample(T, state));
+        finish(o.outcome, o.message + " (static solve after the closure)");
+        return result;
+      }
+    }
   }
+  if (opt.settle_mm > 0 && !at_rest && !settle(opt.settle_mm)) return result;
   result.samples.push_back(integrator.sample(tau, state));
   for (int c = 0; c < integrator.num_clips(); ++c)
     result.clip_gap_end_mm.push_back(integrator.clip_gap(c, state.x));
@@ -337,6 +346,8 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"static_residual_n", s.static_residual_n},
                  {"static_relative_residual", s.static_relative_residual},
                  {"static_s", s.static_s},
+                 {"static_step_mm", s.static_step_mm},
+                 {"static_converged", s.static_iterations > 0 && s.static_failure.empty() ? 1 : 0},
                  {"dofs", s.dofs},
                  {"elements", s.elements},
                  {"wall_s", s.wall_s},

@@ -72,19 +72,23 @@ class ClosureIntegrator {
   /// where they are at tau; contact without friction) from state->x, by Newton's method
   /// (ClosureOptions::static_rest): each iteration solves (K + mu M) dx = -r, K the tangent of
   /// every force (the consistent co-rotational tangent with the rotations' derivative and the
-  /// inversion guard, chordae and clips, the follower pressure, all exact and not symmetric;
-  /// contact's Gauss-Newton stiffness), by GMRES preconditioned by a Cholesky factorization of
-  /// its symmetric positive definite part (the warped tangent, reused while it serves), to a
-  /// tolerance that tightens with the residual; then halves dx until the residual falls with no
-  /// element inverted and no node through a leaflet along the way. mu (a Levenberg shift on the
-  /// mass) is 0 while full steps succeed and grows when no step lowers the residual. Converged
-  /// when |r| <= static_tolerance |pressure load| (2-norms over the free dofs); given up after
-  /// static_max_iterations, or when kStaticStall iterations in a row lower the residual by less
-  /// than 10 %. On success state->x is the rest state and state->v zero; on failure state->x is
-  /// the state of the lowest residual (v zero) when it is below the start's, else unchanged.
-  /// The residual history, the iterations and the time are in counters().
+  /// inversion guard, chordae and clips, the follower pressure, contact's exact stiffness; not
+  /// symmetric), by GMRES preconditioned by a Cholesky factorization of its symmetric positive
+  /// definite part (the warped tangent, reused while it serves), to a tolerance that tightens
+  /// with the residual; then a line search on the energy's slope along dx, r(x + s dx) . dx,
+  /// whose every trial keeps the elements uninverted and no node through a leaflet. mu (a
+  /// Levenberg shift on the mass) relaxes after full steps and grows after short ones or when dx
+  /// does not descend. Converged when |r| <= static_tolerance |pressure load| (2-norms over the
+  /// free dofs), or when a Newton correction moves no node by more than static_step_mm with
+  /// |r| <= kStaticStepResidual |pressure load| (contact's facet normals switch, which leaves a
+  /// residual that no small step lowers: docs/forward-status.md); given up after
+  /// static_max_iterations. On success state->x is the rest state and state->v zero; on failure
+  /// state->x is the last iterate (v zero). The residual history, the iterations and the time
+  /// are in counters().
   StepOutcome solve_static(double tau, ValveState* state);
-  static constexpr int kStaticStall = 4;
+  static constexpr int kStaticLineSearch = 6;
+  /// The residual (fraction of the pressure load) below which a small full step converges.
+  static constexpr double kStaticStepResidual = 1e-2;
   /// Forces (N, all dofs) of the static problem at positions x and time tau: minus the elastic
   /// gradient, chordae and clips, contact without friction and the pressure (whose part alone
   /// goes to *pressure when not null); keeps each term's linearization for the static tangent.

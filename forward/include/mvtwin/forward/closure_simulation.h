@@ -59,19 +59,23 @@ struct ClosureOptions {
   /// Newton iterations per settling step (up to newton_tolerance): with one, patient 4's large
   /// steps still moved 0.32 mm each after 5 s; with 3 it stopped after 2 s (forward-status.md).
   int settle_newton_iterations = 3;
-  /// The closed valve at rest by a static solve instead of settling: after the closure, Newton
-  /// iterations on the static equilibrium under the held peak pressure and boundary (the
-  /// consistent co-rotational tangent with the rotations' derivative, symmetrized, the follower
-  /// pressure's tangent, symmetrized, the chordae's Hessian, frictionless contact's Gauss-Newton
-  /// stiffness), a line search that keeps every element uninverted and no node through a
-  /// leaflet (continuous collision detection along the update), and a Levenberg shift on the
-  /// mass when the tangent is not positive definite or the step does not lower the residual
-  /// (ClosureIntegrator::solve_static). Off: settling (settle_mm).
+  /// The closed valve at rest by a static solve instead of settling: after the closure (and
+  /// settling to static_start_mm), Newton iterations on the static equilibrium under the held
+  /// peak pressure and boundary with the exact tangent, a line search on the energy's slope that
+  /// keeps every element uninverted and no node through a leaflet, and a Levenberg shift on the
+  /// mass (ClosureIntegrator::solve_static). Off: settling (settle_mm).
   bool static_rest = false;
   /// Converged when the free nodes' residual force (2-norm) is below this fraction of the
-  /// pressure load's (2-norm over the same nodes).
+  /// pressure load's (2-norm over the same nodes), or by static_step_mm.
   double static_tolerance = 1e-6;
-  int static_max_iterations = 40;   ///< Newton iterations before the static solve gives up
+  int static_max_iterations = 40;  ///< Newton iterations before the static solve gives up
+  /// Also converged after a full Newton step that moved no free node by more than this (mm),
+  /// the residual below 1 % of the load (ClosureIntegrator::solve_static).
+  double static_step_mm = 1e-3;
+  /// Settle (as settling does) until a step moves the valve by less than this (mm) before the
+  /// static solve; 0 = Newton from the closure's end. Newton from the closure's end wanders
+  /// while the contact pairs change (docs/forward-status.md).
+  double static_start_mm = 0.03;
   double density = 1.04e-9;         ///< t/mm^3 (1.04 g/mL)
   double rayleigh_mass = 0.1;       ///< alpha_M, 1/s
   double rayleigh_stiffness = 0.1;  ///< alpha_K, s
@@ -149,6 +153,7 @@ struct ClosureSummary {
   /// per iteration, the start first), and its wall time (in wall_s).
   int static_iterations = 0;
   double static_residual_n = 0, static_relative_residual = 0, static_s = 0;
+  double static_step_mm = 0;  ///< the last Newton step's largest node motion, mm
   std::vector<double> static_history;
   /// Why the static solve failed (settling then brought the valve to rest), or empty.
   std::string static_failure;
