@@ -54,7 +54,7 @@ void register_phantom(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("phantom", "Make one virtual (synthetic) patient");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin phantom --seed 1 --out patient.h5\n"
+      "  mvtwin phantom --seed 4 --out patient.h5\n"
       "  mvtwin phantom --seed 7 --pathology functional_mr --out fmr.h5\n"
       "  mvtwin phantom --seed 3 --pathology normal --out closing.h5   # long: its chordae tuned\n"
       "  mvtwin phantom --seed 3 --pathology normal --no-tune-normal-chordae --out normal.h5\n"
