@@ -788,15 +788,14 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
     }
     counters_.static_history.push_back(rn);
     ++counters_.newton_iterations;
-    const double step_mm = taken * (dx.size() ? dx.lpNorm<Eigen::Infinity>() : 0.0);
-    counters_.static_step_mm = step_mm;
     // Converged on the force residual, or (contact's closest features switch between facets,
-    // which leaves a residual Newton cannot lower by more than a little per step) on a full
-    // Newton step that moved no node by more than static_step_mm with the residual below
-    // kStaticStepResidual of the load.
-    const double newton_mm = usable ? dx.lpNorm<Eigen::Infinity>() : 1e300;
+    // which leaves a residual Newton cannot lower by more than a little per step) when a step
+    // was taken along a Newton correction that moves no node by more than static_step_mm, with
+    // the residual below kStaticStepResidual of the load.
+    const double correction_mm = usable ? dx.lpNorm<Eigen::Infinity>() : 0.0;
+    counters_.static_step_mm = correction_mm;
     converged = rn <= target ||
-                (taken > 0.0 && newton_mm <= options_.static_step_mm && rn <= step_target_n);
+                (taken > 0.0 && correction_mm <= options_.static_step_mm && rn <= step_target_n);
     // The Levenberg shift as a trust region: a full step relaxes it, a short one or a
     // direction that does not descend tightens it.
     if (taken == 1.0) {
@@ -816,12 +815,13 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
     // the caller may settle from there.
     state->x = x;
     state->v.setZero();
-    return failed(Outcome::kLinearSolver,
-                  "the static solve did not converge: residual " + std::to_string(rn) + " N (" +
-                      std::to_string(rn / std::max(load, 1e-300)) +
-                      " of the pressure load) after " + std::to_string(it) +
-                      " Newton iterations, last step " + std::to_string(counters_.static_step_mm) +
-                      " mm" + (why.empty() ? "" : " (" + why + ")"));
+    return failed(Outcome::kLinearSolver, "the static solve did not converge: residual " +
+                                              std::to_string(rn) + " N (" +
+                                              std::to_string(rn / std::max(load, 1e-300)) +
+                                              " of the pressure load) after " + std::to_string(it) +
+                                              " Newton iterations, last correction " +
+                                              std::to_string(counters_.static_step_mm) + " mm" +
+                                              (why.empty() ? "" : " (" + why + ")"));
   }
   state->x = x;
   state->v.setZero();

@@ -347,7 +347,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"static_relative_residual", s.static_relative_residual},
                  {"static_s", s.static_s},
                  {"static_step_mm", s.static_step_mm},
-                 {"static_converged", s.static_iterations > 0 && s.static_failure.empty() ? 1 : 0},
+                 {"static_converged", o.static_rest && s.static_failure.empty() ? 1 : 0},
                  {"dofs", s.dofs},
                  {"elements", s.elements},
                  {"wall_s", s.wall_s},

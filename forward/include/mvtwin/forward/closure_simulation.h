@@ -69,8 +69,8 @@ struct ClosureOptions {
   /// pressure load's (2-norm over the same nodes), or by static_step_mm.
   double static_tolerance = 1e-6;
   int static_max_iterations = 40;  ///< Newton iterations before the static solve gives up
-  /// Also converged after a full Newton step that moved no free node by more than this (mm),
-  /// the residual below 1 % of the load (ClosureIntegrator::solve_static).
+  /// Also converged after a step along a Newton correction that moves no free node by more
+  /// than this (mm), the residual below 1 % of the load (ClosureIntegrator::solve_static).
   double static_step_mm = 1e-3;
   /// Settle (as settling does) until a step moves the valve by less than this (mm) before the
   /// static solve; 0 = Newton from the closure's end. Newton from the closure's end wanders
@@ -153,7 +153,7 @@ struct ClosureSummary {
   /// per iteration, the start first), and its wall time (in wall_s).
   int static_iterations = 0;
   double static_residual_n = 0, static_relative_residual = 0, static_s = 0;
-  double static_step_mm = 0;  ///< the last Newton step's largest node motion, mm
+  double static_step_mm = 0;  ///< the last Newton correction's largest node motion, mm
   std::vector<double> static_history;
   /// Why the static solve failed (settling then brought the valve to rest), or empty.
   std::string static_failure;
