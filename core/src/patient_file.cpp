@@ -250,6 +250,7 @@ void write_truth(const h5::Location& root, const VirtualTruth& truth) {
   g.attr("pathology", std::string(pathology_name(truth.pathology)));
   g.attr("pathology_classes", pathology_names_list());
   g.attr("closed_frames", truth.closed_frames);
+  if (!truth.observed_with.empty()) g.attr("observed_with", truth.observed_with);
   const h5::Location p = g.create_group("parameters");
   truth.parameters.for_each(
       [&](const std::string& name, double v, const char* unit) { p.write_scalar(name, v, unit); });
@@ -275,6 +276,7 @@ VirtualTruth read_truth(const h5::Location& root, std::vector<int>* legacy_ruptu
     g.fail("", e.what());
   }
   t.closed_frames = g.attr_string("closed_frames");
+  if (g.has_attr("observed_with")) t.observed_with = g.attr_string("observed_with");
   if (g.exists("orifice")) {
     std::optional<LeafletGrid> la, lv;
     t.closed_orifice = h5::read_orifice(g.open_group("orifice"), &la, &lv);

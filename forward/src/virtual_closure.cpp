@@ -22,6 +22,33 @@ ClosureOptions VirtualClosureOptions::fine_default() {
   return o;
 }
 
+std::vector<ObservationAttempt> observation_attempts(const ClosureOptions& simulation) {
+  std::vector<ObservationAttempt> out;
+  out.push_back({"", simulation});
+  ClosureOptions o = simulation;
+  o.max_step_halvings = simulation.max_step_halvings + 3;
+  o.settle_max_dt = std::max(o.dt, simulation.settle_max_dt / 4);
+  auto fmt = [](double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+  };
+  out.push_back({"retry 1: max_step_halvings " + std::to_string(o.max_step_halvings) +
+                     ", settle_max_dt " + fmt(o.settle_max_dt) + " s",
+                 o});
+  o.dt = simulation.dt / 2;
+  o.max_dt = simulation.max_dt / 2;
+  o.settle_max_dt = std::max(o.dt, simulation.settle_max_dt / 4);
+  o.newton_iterations = std::max(2, simulation.newton_iterations);
+  o.record_every = simulation.record_every * 2;  // recorded at the same simulated times
+  out.push_back({"retry 2: max_step_halvings " + std::to_string(o.max_step_halvings) +
+                     ", settle_max_dt " + fmt(o.settle_max_dt) + " s, dt " + fmt(o.dt) +
+                     " s, max_dt " + fmt(o.max_dt) + " s, newton_iterations " +
+                     std::to_string(o.newton_iterations),
+                 o});
+  return out;
+}
+
 void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
   if (!p->synthetic || !p->truth) {
     throw Error("observed closure: patient '" + p->id + "' has no virtual ground truth");
@@ -36,14 +63,29 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
       throw Error("observed closure of '" + p->id + "': tuning its chordae failed: " + t.failure);
   }
   ValveSequence& seq = p->sequence;
-  ClosureOptions o = opt.simulation;
+  ClosureOptions given = opt.simulation;
   // Record often enough to find each frame's state (every 0.02 s of simulated time, i.e.
   // 2 ms of the image clock at the default stretch), not every step: each record samples the
   // surface, measures the orifice and evaluates the elastic energy.
-  o.record_every = std::max(1, static_cast<int>(std::lround(0.02 / o.dt)));
-  const ClosureResult r = simulate_closure(seq, p->truth->parameters, o);
+  given.record_every = std::max(1, static_cast<int>(std::lround(0.02 / given.dt)));
+  ClosureResult r;
+  std::string setting, failures;
+  ClosureOptions o;
+  for (const ObservationAttempt& a : observation_attempts(given)) {
+    r = simulate_closure(seq, p->truth->parameters, a.simulation);
+    if (r.summary.converged()) {
+      setting = a.setting;
+      o = a.simulation;
+      break;
+    }
+    failures += std::string(failures.empty() ? "" : "; ") +
+                (a.setting.empty() ? "as given" : a.setting.substr(0, a.setting.find(':'))) + ": " +
+                r.summary.reason;
+    if (r.summary.outcome == Outcome::kInvalidInput) break;  // no setting mends the input
+  }
   if (!r.summary.converged()) {
-    throw Error("observed closure of '" + p->id + "' failed: " + r.summary.reason);
+    throw Error("observed closure of '" + p->id + "' failed with every setting tried (" + failures +
+                ")");
   }
   Rng rng(p->provenance.seed * 7919 + 17);
   for (int f = seq.end_diastole + 1; f <= seq.first_closed; ++f) {
@@ -104,7 +146,9 @@ void simulate_observed_closure(Patient* p, const VirtualClosureOptions& opt) {
      << "), nearest recorded state to each frame time, plus " << opt.noise_mm
      << " mm Gaussian noise along the normals; later frames unobserved; simulation: "
      << r.summary.brief_report();
+  if (!setting.empty()) os << "; observed by " << setting << " after: " << failures;
   p->truth->closed_frames = os.str();
+  p->truth->observed_with = setting;
   p->truth->closed_orifice = r.orifice;
   seq.validate(("observed closure of '" + p->id + "'").c_str());
 }

@@ -281,6 +281,7 @@ ClipStudyResult run_clip_study(const ClipStudyOptions& o, WorkPool& pool) {
         if (!p.truth || !p.truth->closed_orifice)
           throw Error(file.string() + " holds no observed regurgitant orifice");
         r["eroa_true_mm2"] = p.truth->closed_orifice->eroa_mm2;
+        r["observed_with"] = p.truth->observed_with.empty() ? "as given" : p.truth->observed_with;
       } catch (const std::exception& ex) {
         r["reason"] = std::string("observation failed: ") + ex.what();
       }

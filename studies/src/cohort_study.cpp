@@ -190,6 +190,7 @@ json CohortPatient::to_json() const {
          {"sd", sd.is_null() ? json::object() : sd},
          {"identified", identified.is_null() ? json::object() : identified},
          {"observe_s", observe_s},
+         {"observed_with", observed_with.empty() ? json(nullptr) : json(observed_with)},
          {"default_s", default_s},
          {"calibrate_s", calibrate_s}};
   if (!reason.empty()) j["reason"] = reason;
@@ -227,6 +228,9 @@ CohortPatient CohortPatient::from_json(const json& j) {
   p.sd = j.value("sd", json::object());
   p.identified = j.value("identified", json::object());
   p.observe_s = j.value("observe_s", 0.0);
+  p.observed_with = j.contains("observed_with") && j["observed_with"].is_string()
+                        ? j["observed_with"].get<std::string>()
+                        : "";
   p.default_s = j.value("default_s", 0.0);
   p.calibrate_s = j.value("calibrate_s", 0.0);
   return p;
@@ -326,6 +330,8 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
       c.id = p.id;
       c.synthetic = p.synthetic || p.truth.has_value();
       if (p.truth) c.pathology = std::string(pathology_name(p.truth->pathology));
+      if (p.truth && e.is_virtual)
+        c.observed_with = p.truth->observed_with.empty() ? "as given" : p.truth->observed_with;
       if (c.pathology.empty()) c.pathology = "unknown";
       const auto t0 = std::chrono::steady_clock::now();
       inverse::ObjectiveOptions oo;
@@ -499,6 +505,21 @@ CohortStudyResult run_cohort_study(const CohortStudyOptions& o, WorkPool& pool) 
   json pj = json::object(), pij = json::object();
   for (const auto& [name, v] : perr) pj[name] = stats_json(v);
   for (const auto& [name, v] : perr_identified) pij[name] = stats_json(v);
+  // How the virtual patients were observed: by the observation model as given, by a safer
+  // retry (forward::observation_attempts), or not at all (the patient lost to the solver).
+  {
+    int as_given = 0, lost = 0;
+    std::map<std::string, int> retried;
+    for (const auto& p : result.patients) {
+      if (p.reason.rfind("observation failed", 0) == 0)
+        ++lost;
+      else if (p.observed_with == "as given")
+        ++as_given;
+      else if (!p.observed_with.empty())
+        ++retried[p.observed_with];
+    }
+    result.summary["observations"] = {{"as_given", as_given}, {"retried", retried}, {"lost", lost}};
+  }
   result.summary["fitted_minus_truth_abs"] = pj;
   result.summary["fitted_minus_truth_abs_identified"] = pij;
   if (o.calibrate) {
@@ -738,6 +759,21 @@ void write_outputs(const CohortStudyOptions& o, const CohortStudyResult& r,
     rows.push_back({"error, calibrated, mm", cell(ov["error_calibrated_mm"]),
                     "1.27, 1.12, 1.50 (3 patients, rest lengths by hand)"});
   rep.table({"", "mvtwin", "paper"}, rows);
+  if (s.contains("observations")) {
+    const json& ob = s["observations"];
+    int retried = 0;
+    std::string how;
+    for (const auto& [setting, count] : ob["retried"].items()) {
+      retried += count.get<int>();
+      how += "; " + std::to_string(count.get<int>()) + " by " + setting;
+    }
+    if (retried + ob["lost"].get<int>() + ob["as_given"].get<int>() > 0)
+      rep.paragraph("Observed closures: " + std::to_string(ob["as_given"].get<int>()) +
+                    " by the observation model as given, " + std::to_string(retried) +
+                    " by a safer retry after it failed (the same model stepped more carefully" +
+                    how + "), " + std::to_string(ob["lost"].get<int>()) +
+                    " lost (every setting failed; the patient's reason says why).");
+  }
   rep.heading("Per pathology");
   rows.clear();
   for (const auto& [name, v] : s["by_pathology"].items())

@@ -119,8 +119,12 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
     EXPECT_TRUE(p["rating"] == "satisfactory" || p["rating"] == "passable" ||
                 p["rating"] == "unsatisfactory");
     pathologies.insert(p["pathology"].get<std::string>());
+    EXPECT_EQ(p["observed_with"], "as given") << p.dump();  // no observation needed a retry
   }
   EXPECT_EQ(pathologies.size(), 3u);  // the pathologies in turn
+  EXPECT_EQ(j["summary"]["observations"]["as_given"].get<int>(), 3);
+  EXPECT_EQ(j["summary"]["observations"]["lost"].get<int>(), 0);
+  EXPECT_TRUE(j["summary"]["observations"]["retried"].empty());
   // The HDF5 table holds the same numbers.
   const TableFile t = read_table_file(o.out / "study.h5");
   EXPECT_EQ(t.format, "mvtwin-cohort-study");
@@ -139,6 +143,9 @@ TEST_F(CohortStudy, QuickStudyWritesEveryPatientWithItsErrorAndRating) {
   s << md.rdbuf();
   EXPECT_NE(s.str().find("Mansi"), std::string::npos);
   EXPECT_NE(s.str().find("1.49 ± 0.62"), std::string::npos);
+  EXPECT_NE(s.str().find("Observed closures: 3 by the observation model as given, 0 by a safer "
+                         "retry"),
+            std::string::npos);
   for (const char* png : {"errors_per_patient.png", "errors_by_pathology.png", "ratings.png"}) {
     EXPECT_GT(fs::file_size(o.out / png), 1000u) << png;
     EXPECT_NE(s.str().find(png), std::string::npos) << png;

@@ -54,6 +54,9 @@ struct VirtualTruth {
   }
   /// How the frames whose leaflets are not geometric (closing and closed) were produced.
   std::string closed_frames = "missing: closed frames need the forward simulator";
+  /// Which setting of the observation model observed them: empty for the model as given, else
+  /// the safer retry that did after it failed (forward::observation_attempts).
+  std::string observed_with;
   /// The regurgitant orifice of that simulation's closed valve: the true orifice, which the
   /// noisy closed frames only hint at (ground_truth/orifice). Empty until they are simulated.
   std::optional<RegurgitantOrifice> closed_orifice;

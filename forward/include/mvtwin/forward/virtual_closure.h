@@ -29,11 +29,28 @@ struct VirtualClosureOptions {
   static ClosureOptions fine_default();
 };
 
+/// One setting an observation is tried with: the model as given first, then safer ones.
+struct ObservationAttempt {
+  std::string setting;  ///< empty for the model as given, else "retry k: what changed"
+  ClosureOptions simulation;
+};
+
+/// The settings an observation is tried with, in order, until one succeeds: the model as given;
+/// retry 1: 3 more step halvings and settling steps of at most a quarter of settle_max_dt (the
+/// failures seen: a node driven through a leaflet by a large settling step, an element inverted
+/// in a step that three halvings did not save); retry 2: also half the step (dt and max_dt) and
+/// at least 2 Newton iterations per step. Each is the same physical model (mesh, material,
+/// contact, load); only how the dynamics is stepped changes, and the closed valve is at rest
+/// either way (settle_mm).
+std::vector<ObservationAttempt> observation_attempts(const ClosureOptions& simulation);
+
 /// Simulates the closure of a synthetic patient with its hidden parameters and fills the
 /// leaflet surfaces of the frames after end-diastole up to the first closed frame (marked
-/// observed; later systolic frames stay unobserved), with noise. Records how in
-/// truth->closed_frames. Throws mvtwin::Error for a patient without virtual truth, and when the
-/// simulation fails (the patient file is then left as it was).
+/// observed; later systolic frames stay unobserved), with noise. A simulation that fails is
+/// retried with the safer settings of observation_attempts before the observation is given up;
+/// records how in truth->closed_frames and which retry observed it in truth->observed_with
+/// (empty: the model as given). Throws mvtwin::Error for a patient without virtual truth, and
+/// when every attempt fails (naming each failure; the patient is then left as it was).
 void simulate_observed_closure(Patient* patient, const VirtualClosureOptions& options = {});
 
 }  // namespace mvtwin::forward

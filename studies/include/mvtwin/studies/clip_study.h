@@ -113,7 +113,9 @@ struct ClipStudyPatient {
 
 struct ClipStudyResult {
   std::vector<ClipStudyPatient> patients;
-  /// The members looked at: index, id, pathology, observed EROA (or why the observation failed).
+  /// The members looked at: index, id, pathology, observed EROA and which setting observed it
+  /// (observed_with: "as given" or a safer retry, forward::observation_attempts), or why the
+  /// observation failed.
   nlohmann::json scanned = nlohmann::json::array();
   nlohmann::json summary;
   std::string workers;

@@ -91,6 +91,9 @@ struct CohortPatient {
   std::string status = "ok";  ///< "ok", or "failed" with `reason`
   std::string reason;
   double observe_s = 0;  ///< the observed closure's simulation (0 when cached or real)
+  /// Which setting of the observation model observed a virtual patient: "as given", or the
+  /// safer retry after it failed (forward::observation_attempts); empty for a real patient.
+  std::string observed_with;
   // default parameters
   double error_default_mm = 0, error_default_sd_mm = 0, error_default_p95_mm = 0;
   double orifice_mm2 = 0, coaptation_mm = 0, coapting_fraction = 0;
