@@ -83,7 +83,7 @@ void register_phantom(CLI::App& app, Context& ctx) {
   add_tune_normal_option(cmd, a->tune_normal_chordae);
   cmd->add_option("--closure-set", a->closure_sets,
                   "name=value for that simulation (default: ures = vres = 40, 3 layers, "
-                  "dt = 0.001 s, linear systems to 1e-3)");
+                  "steps from 0.001 s at 0.05 mm error, linear systems to 1e-3)");
   cmd->add_option("--noise", a->noise_mm, "detection-like noise on the simulated surfaces, mm")
       ->default_val(0.5);
   run_on_parse(cmd, ctx, a, run_phantom);

@@ -106,7 +106,6 @@ bool CohortStudyOptions::is_valid(std::string* error) const {
 
 forward::VirtualClosureOptions CohortStudyOptions::study_observation() {
   forward::VirtualClosureOptions v;
-  v.simulation.dt = 0.005;
   v.tune_normal_chordae = true;  // a healthy valve closes (docs/virtual-patients.md)
   return v;
 }

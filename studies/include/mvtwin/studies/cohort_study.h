@@ -44,9 +44,11 @@ struct CohortStudyOptions {
   /// studies and runs, named by the observation model.
   std::filesystem::path cache;
   /// How virtual patients are observed: the fine model of VirtualClosureOptions (40 x 40,
-  /// 3 layers) with dt 0.005 s instead of 0.001 s, 2.8x faster; its closed surfaces differ from
-  /// dt = 0.001 s by 0.011 mm mean, 0.11 mm max on patient 0 (docs/studies.md), far below
-  /// the 0.5 mm observation noise, and it stays finer than the calibration model (dt 0.01 s).
+  /// 3 layers, error-controlled steps from 1e-3 s at 0.05 mm), its normal valves' chordae tuned
+  /// to close. Until issue 40 fixed steps of 0.005 s: 1.4x and 1.2x the time on cohort seed
+  /// 2026 patients 1 and 5 (101 and 133 s on one core against 74 and 110 s), both within
+  /// 0.012 mm (mean over the closing surfaces) of fixed steps of 1e-3 s, far below the 0.5 mm
+  /// observation noise (docs/virtual-patients.md).
   forward::VirtualClosureOptions observation = study_observation();
   static forward::VirtualClosureOptions study_observation();
   /// The model every error is reported on (default parameters, and the calibrated ones): the
