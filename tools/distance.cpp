@@ -3,6 +3,8 @@
 
 #include <iostream>
 
+#include <nlohmann/json.hpp>
+
 #include "exit_codes.h"
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/patient_file.h"
@@ -33,6 +35,23 @@ int run_distance(const DistanceArgs& a) {
   };
   const SymmetricDistance d =
       symmetric_surface_distance(surface(a.a, a.frame_a), surface(a.b, a.frame_b));
+  if (a.json) {
+    auto stats = [](const DistanceStats& x) {
+      return nlohmann::json{{"mean_mm", x.mean},
+                            {"sd_mm", x.sd},
+                            {"p95_mm", x.p95},
+                            {"max_mm", x.max},
+                            {"n", x.count}};
+    };
+    std::cout << nlohmann::json{{"a", a.a},
+                                {"b", a.b},
+                                {"a_to_b", stats(d.a_to_b)},
+                                {"b_to_a", stats(d.b_to_a)},
+                                {"symmetric", stats(d.symmetric)}}
+                     .dump(2)
+              << "\n";
+    return kExitOk;
+  }
   auto line = [](const char* what, const DistanceStats& x) {
     std::cout << what << fixed(x.mean) << " +- " << fixed(x.sd) << " mm (95th pct " << fixed(x.p95)
               << ", max " << fixed(x.max) << ", n=" << x.count << ")\n";
@@ -47,7 +66,7 @@ void register_distance(CLI::App& app, Context& ctx) {
   auto* cmd = app.add_subcommand("distance", "Point-to-mesh distance between two LA surfaces");
   cmd->footer(
       "Examples:\n  mvtwin distance closed.h5 observed.h5\n  mvtwin distance closed.h5 "
-      "closed_dt.h5\n"
+      "closed_dt.h5\n  mvtwin distance closed.h5 observed.h5 --json\n"
       "A and B are patient files or simulation results (their end surface). Patient frames\n"
       "default to the first closed frame (else frame 0); distances go from the vertices of\n"
       "one surface to the triangles of the other, both ways.");
@@ -56,6 +75,9 @@ void register_distance(CLI::App& app, Context& ctx) {
   cmd->add_option("B", a->b, "second patient or simulation file")->required();
   cmd->add_option("--frame-a", a->frame_a, "frame of A (default: first closed, else 0)");
   cmd->add_option("--frame-b", a->frame_b, "frame of B (default: first closed, else 0)");
+  cmd->add_flag("--json", a->json,
+                "print the figures as JSON at full precision (a_to_b, b_to_a, symmetric: "
+                "mean_mm, sd_mm, p95_mm, max_mm, n)");
   run_on_parse(cmd, ctx, a, run_distance);
 }
 

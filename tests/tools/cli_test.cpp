@@ -90,6 +90,24 @@ TEST_F(Cli, PhantomInfoExport) {
   const auto quick = mvtwin::read_patient(path("quick.h5"));
   ASSERT_GE(quick.sequence.first_closed, 0);
   EXPECT_TRUE(quick.sequence.frames[quick.sequence.first_closed].la_surface.has_value());
+  // distance --json gives the printed figures at full precision: the closed frame against the
+  // open end-diastolic one (millimetres apart), and against itself (zero).
+  r = run("distance " + path("quick.h5") + " " + path("quick.h5") + " --frame-b 0");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string text = r.out;
+  r = run("distance " + path("quick.h5") + " " + path("quick.h5") + " --frame-b 0 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json dj = nlohmann::json::parse(r.out);
+  const double sym = dj["symmetric"]["mean_mm"].get<double>();
+  EXPECT_GT(sym, 1.0);
+  char printed[64];
+  std::snprintf(printed, sizeof printed, "symmetric: %.2f +- %.2f mm", sym,
+                dj["symmetric"]["sd_mm"].get<double>());
+  EXPECT_NE(text.find(printed), std::string::npos) << text << " vs " << printed;
+  EXPECT_EQ(dj["symmetric"]["n"].get<int>(),
+            dj["a_to_b"]["n"].get<int>() + dj["b_to_a"]["n"].get<int>());
+  r = run("distance " + path("quick.h5") + " " + path("quick.h5") + " --json");
+  EXPECT_EQ(nlohmann::json::parse(r.out)["symmetric"]["max_mm"].get<double>(), 0.0);
   // Same seed, same result.
   ASSERT_EQ(run("phantom --seed 4 --out " + path("q.h5")).code, 0);
   const auto a = mvtwin::read_patient(path("p.h5")), b = mvtwin::read_patient(path("q.h5"));
