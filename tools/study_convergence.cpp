@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "exit_codes.h"
+#include "mvtwin/core/error.h"
 #include "mvtwin/studies/convergence_study.h"
 #include "mvtwin/studies/report.h"
 #include "study_commands.h"
@@ -30,6 +31,10 @@ int run_study_convergence(const StudyConvergenceArgs& args) {
   if (!args.vres.empty()) o.vres = args.vres;
   if (!args.layers.empty()) o.layers = args.layers;
   if (!args.dt.empty()) o.dt = args.dt;
+  if (args.no_pair && !args.pair_sets.empty())
+    throw Error("study convergence: --no-pair and --pair-set contradict each other");
+  if (args.no_pair) o.pair.clear();
+  if (!args.pair_sets.empty()) o.pair = args.pair_sets;
   for (const auto& s : args.sets)
     apply_model_setting(s, &o.model,
                         "--set: the study simulates the patient with its own parameters");
@@ -37,8 +42,10 @@ int run_study_convergence(const StudyConvergenceArgs& args) {
   o.progress = progress_printer(*pool);
   const studies::ConvergenceStudyResult r = studies::run_convergence_study(o, *pool);
   if (!pool->is_root()) return 0;
-  std::printf("%-7s %-18s %8s %7s %7s %14s %9s %9s\n", "factor", "value", "wall_s", "steps", "dofs",
-              "error mm", "p95 mm", "max mm");
+  const bool paired = !o.pair.empty();
+  std::printf("%-7s %-18s %8s %7s %7s %14s %9s %9s%s\n", "factor", "value", "wall_s", "steps",
+              "dofs", "error mm", "p95 mm", "max mm",
+              paired ? "   paired: wall_s  error mm  max mm  apart mm" : "");
   int failed = 0;
   for (const auto& k : r.runs) {
     if (k.status != "ok") {
@@ -46,10 +53,17 @@ int run_study_convergence(const StudyConvergenceArgs& args) {
       std::printf("%-7s %-18s failed: %s\n", k.factor.c_str(), k.value.c_str(), k.reason.c_str());
       continue;
     }
-    std::printf("%-7s %-18s %8.1f %7d %7d %14s %9.3f %9.3f\n", k.factor.c_str(),
+    std::printf("%-7s %-18s %8.1f %7d %7d %14s %9.3f %9.3f", k.factor.c_str(),
                 (k.value + (k.reference ? " (reference)" : "")).c_str(), k.wall_s, k.steps, k.dofs,
                 studies::mean_sd(k.error_mean_mm, k.error_sd_mm, 3).c_str(), k.error_p95_mm,
                 k.error_max_mm);
+    if (paired && k.paired_status == "ok")
+      std::printf("   %14.1f%s %9.3f %7.3f %9.3f", k.paired_wall_s,
+                  k.paired_static_converged ? " " : "*", k.paired_error_mean_mm,
+                  k.paired_error_max_mm, k.paired_difference_mm);
+    else if (paired)
+      std::printf("   paired run failed: %s", k.paired_reason.c_str());
+    std::printf("\n");
   }
   std::cout << "patient " << r.patient_id << (r.synthetic ? " [SYNTHETIC]" : "") << "; "
             << r.simulations << " simulations; wrote " << (o.out / "report.md").string() << " ("
@@ -72,7 +86,10 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
       "grid, --set to change it): ures 20,30,40,50, vres 10,20,30, layers 1,2,3, dt 0.1 to\n"
       "1e-4 s. The last value of each series is its reference. Writes the errors next to the\n"
       "paper's, a plot per series, the time-against-error (Pareto) plot, study.json, study.h5\n"
-      "and report.md/.html. Resumable; the base model is simulated once for every series.");
+      "and report.md/.html. Resumable; the base model is simulated once for every series.\n"
+      "Each model is paired with the same settings plus --pair-set (by default\n"
+      "static_rest=on: the closed valve at rest by the static solve beside settling), measured\n"
+      "against the same references; --no-pair runs the series alone.");
   auto a = std::make_shared<StudyConvergenceArgs>();
   add_one_patient_options(cmd, a.get());
   cmd->add_option("--set", a->sets, "name=value for the base model (pcg_tolerance=1e-4, ...)");
@@ -80,6 +97,10 @@ void register_study_convergence(CLI::App* study, Context& ctx) {
   cmd->add_option("--vres", a->vres, "radial series, coarse to fine")->delimiter(',');
   cmd->add_option("--layers", a->layers, "layer series, coarse to fine")->delimiter(',');
   cmd->add_option("--dt", a->dt, "time-step series, s, coarse to fine")->delimiter(',');
+  cmd->add_option("--pair-set", a->pair_sets,
+                  "name=value added for each model's paired run (repeatable; replaces the "
+                  "default static_rest=on)");
+  cmd->add_flag("--no-pair", a->no_pair, "no paired runs");
   cmd->add_flag("--quick", a->quick,
                 "the test size: a 12 x 8 base at dt 0.02 s, two or three values per series");
   run_on_parse(cmd, ctx, a, run_study_convergence);

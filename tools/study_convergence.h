@@ -15,6 +15,8 @@ struct StudyConvergenceArgs : OnePatientStudyArgs {
   std::vector<std::string> sets;
   std::vector<int> ures, vres, layers;
   std::vector<double> dt;
+  std::vector<std::string> pair_sets;  ///< the paired runs' settings (default: the study's)
+  bool no_pair = false;
 };
 
 int run_study_convergence(const StudyConvergenceArgs& args);

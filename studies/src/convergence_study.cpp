@@ -59,6 +59,13 @@ bool ConvergenceStudyOptions::is_valid(std::string* error) const {
     if (!(dt[i] < dt[i - 1])) return fail("convergence study: dt must decrease (coarse to fine)");
   std::string e;
   if (!model.is_valid(&e)) return fail("convergence study: " + e);
+  try {
+    forward::ClosureOptions m = model;
+    for (const auto& a : pair) forward::apply_option(a, &m);
+    if (!m.is_valid(&e)) return fail("convergence study: the paired run: " + e);
+  } catch (const std::exception& x) {
+    return fail(std::string("convergence study: the paired run: ") + x.what());
+  }
   // Every run's model must be valid too: check the extremes of each series.
   for (const int u : {ures.front(), ures.back()}) {
     forward::ClosureOptions m = model;
@@ -101,6 +108,7 @@ json ConvergenceStudyOptions::config() const {
          {"vres", vres},
          {"layers", layers},
          {"dt", dt}};
+  if (!pair.empty()) c["pair"] = pair;
   if (patient_file.empty())
     c.update({{"seed", seed},
               {"patient", patient},
@@ -156,6 +164,10 @@ json simulate_one(const Patient& patient, const ValveParameters& parameters,
          {"steps", s.steps},
          {"dofs", s.dofs},
          {"tets", s.elements}};
+    if (options.static_rest) {
+      j["static_converged"] = s.static_failure.empty();
+      j["static_iterations"] = s.static_iterations;
+    }
     if (s.converged()) {
       const LeafletGrid& g = r.samples.back().la_surface;
       std::vector<double> xyz(static_cast<std::size_t>(g.points().rows()) * 3);
@@ -218,16 +230,29 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
     }
     sim_of[i] = static_cast<int>(it - sims.begin());
   }
+  // The paired runs: each distinct model again with o.pair on top.
+  std::vector<int> paired_of(sims.size(), -1);
+  if (!o.pair.empty()) {
+    const std::size_t n_main = sims.size();
+    for (std::size_t k = 0; k < n_main; ++k) {
+      forward::ClosureOptions m = sims[k].options;
+      for (const auto& a : o.pair) forward::apply_option(a, &m);
+      sims.push_back({m, detail::describe(m).dump(), sims[k].cost});
+      paired_of[k] = static_cast<int>(sims.size() - 1);
+    }
+  }
   // The longest first, so that no long run starts last (records are named by their model).
   std::vector<int> order(sims.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
     return sims[static_cast<std::size_t>(a)].cost > sims[static_cast<std::size_t>(b)].cost;
   });
+  const std::size_t n_main = paired_of.size();
   auto record_name = [&](int s) {
     const auto& m = sims[static_cast<std::size_t>(s)].options;
     return "run_u" + std::to_string(m.model.ures) + "_v" + std::to_string(m.model.vres) + "_l" +
-           std::to_string(m.model.layers) + "_dt" + text(m.dt);
+           std::to_string(m.model.layers) + "_dt" + text(m.dt) +
+           (static_cast<std::size_t>(s) >= n_main ? "_paired" : "");
   };
 
   const int n = static_cast<int>(sims.size());
@@ -273,6 +298,7 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
   for (std::size_t i = 0; i < runs.size(); ++i) {
     ConvergenceRun& r = runs[i];
     const json& j = sim_json[static_cast<std::size_t>(sim_of[i])];
+    const int paired = paired_of[static_cast<std::size_t>(sim_of[i])];
     r.status = j.at("status");
     r.reason = j.value("reason", "");
     r.wall_s = j.value("wall_s", 0.0);
@@ -290,6 +316,28 @@ ConvergenceStudyResult run_convergence_study(const ConvergenceStudyOptions& o, W
       r.error_sd_mm = e.sd;
       r.error_p95_mm = e.p95;
       r.error_max_mm = e.max;
+    }
+    if (paired >= 0) {
+      const json& q = sim_json[static_cast<std::size_t>(paired)];
+      r.paired_status = q.at("status");
+      r.paired_reason = q.value("reason", "");
+      r.paired_wall_s = q.value("wall_s", 0.0);
+      r.paired_steps = q.value("steps", 0);
+      r.paired_static_converged = q.value("static_converged", false);
+      r.paired_error_mean_mm = r.paired_error_max_mm = r.paired_difference_mm = kNaN;
+      if (r.paired_status == "ok") {
+        const LeafletGrid end = surface_of(q);
+        if (ref != reference.end()) {
+          const DistanceStats e =
+              symmetric_surface_distance(end.triangulate(), ref->second.triangulate()).symmetric;
+          r.paired_error_mean_mm = e.mean;
+          r.paired_error_max_mm = e.max;
+        }
+        if (r.status == "ok")
+          r.paired_difference_mm =
+              symmetric_surface_distance(end.triangulate(), surface_of(j).triangulate())
+                  .symmetric.mean;
+      }
     }
   }
   res.runs = std::move(runs);
@@ -348,6 +396,20 @@ void write_outputs(const ConvergenceStudyOptions& o, const ConvergenceStudyResul
                     {"error_sd_mm", nullable(k.error_sd_mm)},
                     {"error_p95_mm", nullable(k.error_p95_mm)},
                     {"error_max_mm", nullable(k.error_max_mm)}});
+  if (!o.pair.empty()) {
+    for (std::size_t i = 0; i < r.runs.size(); ++i) {
+      const auto& k = r.runs[i];
+      runs[i]["paired"] = {{"settings", o.pair},
+                           {"status", k.paired_status},
+                           {"reason", k.paired_reason},
+                           {"wall_s", k.paired_wall_s},
+                           {"steps", k.paired_steps},
+                           {"static_converged", k.paired_static_converged},
+                           {"error_mean_mm", nullable(k.paired_error_mean_mm)},
+                           {"error_max_mm", nullable(k.paired_error_max_mm)},
+                           {"difference_mean_mm", nullable(k.paired_difference_mm)}};
+    }
+  }
   json prov = detail::provenance(o.command, r.workers, r.wall_s);
   prov["seed"] = o.patient_file.empty() ? json(o.seed) : json(nullptr);
   write_json(f.path("study.json"), {{"format", "mvtwin-convergence-study"},
@@ -383,6 +445,19 @@ void write_outputs(const ConvergenceStudyOptions& o, const ConvergenceStudyResul
     mx.numbers.push_back(k.error_max_mm);
   }
   t.columns = {factor, value, status, wall, steps, dofs, mean, sd, p95, mx};
+  if (!o.pair.empty()) {
+    TableColumn pstatus{"paired_status", "", {}, {}}, pwall{"paired_wall_s", "s", {}, {}},
+        pmean{"paired_error_mean_mm", "mm", {}, {}}, pmax{"paired_error_max_mm", "mm", {}, {}},
+        pdiff{"paired_difference_mean_mm", "mm", {}, {}};
+    for (const auto& k : r.runs) {
+      pstatus.strings.push_back(k.paired_status);
+      pwall.numbers.push_back(k.paired_wall_s);
+      pmean.numbers.push_back(k.paired_error_mean_mm);
+      pmax.numbers.push_back(k.paired_error_max_mm);
+      pdiff.numbers.push_back(k.paired_difference_mm);
+    }
+    for (auto* c : {&pstatus, &pwall, &pmean, &pmax, &pdiff}) t.columns.push_back(*c);
+  }
   write_table_file(f.path("study.h5"), t);
 
   Report rep("Convergence study: what each refinement buys");
@@ -395,9 +470,8 @@ void write_outputs(const ConvergenceStudyOptions& o, const ConvergenceStudyResul
       " s. One factor varies at a time; error: the symmetric point-to-mesh distance between the "
       "closed atrial surface of a run and that of the finest run of its series (mean ± SD, 95th "
       "percentile, max). " +
-      std::to_string(r.simulations) +
-      " distinct models were simulated (the base model is in "
-      "every series).");
+      std::to_string(r.simulations) + " simulations were run (the base model, which is in every " +
+      "series, once" + (o.pair.empty() ? "" : "; each model also as its paired run") + ").");
   rep.heading("mvtwin next to the paper");
   std::vector<std::vector<std::string>> rows;
   for (const auto& k : r.runs) {
@@ -412,6 +486,31 @@ void write_outputs(const ConvergenceStudyOptions& o, const ConvergenceStudyResul
   rep.table({"factor", "value", "wall, s", "steps", "dofs", "error, mm", "p95, mm", "max, mm",
              "paper, mm"},
             rows);
+  if (!o.pair.empty()) {
+    std::string added;
+    for (const auto& a : o.pair) added += (added.empty() ? "`" : ", `") + a + "`";
+    rep.heading("Paired: each model again with " + added);
+    rep.paragraph(
+        "The same model with these settings on top (by default the closed valve at rest by the "
+        "static solve instead of settling), run beside it and measured against the same "
+        "references (each series' finest run as above). \"apart\": the mean symmetric distance "
+        "between the two end surfaces of one model. A static solve that did not converge "
+        "hands over to settling (marked *).");
+    std::vector<std::vector<std::string>> prow;
+    for (const auto& k : r.runs) {
+      const bool ok = k.status == "ok", pok = k.paired_status == "ok";
+      prow.push_back(
+          {k.factor, k.value + (k.reference ? " (reference)" : ""), ok ? number(k.wall_s, 2) : "-",
+           pok ? number(k.paired_wall_s, 2) + (k.paired_static_converged ? "" : " *")
+               : "failed: " + k.paired_reason,
+           ok ? number(k.error_mean_mm, 3) : "-", pok ? number(k.paired_error_mean_mm, 3) : "-",
+           ok ? number(k.error_max_mm, 3) : "-", pok ? number(k.paired_error_max_mm, 3) : "-",
+           ok && pok ? number(k.paired_difference_mm, 3) : "-"});
+    }
+    rep.table({"factor", "value", "wall, s", "paired wall, s", "error, mm", "paired error, mm",
+               "max, mm", "paired max, mm", "apart, mm"},
+              prow);
+  }
   for (const char* fac : {"ures", "vres", "layers", "dt"}) {
     Plot fig;
     fig.title = std::string("Convergence in ") + factor_title(fac);
@@ -456,6 +555,16 @@ void write_outputs(const ConvergenceStudyOptions& o, const ConvergenceStudyResul
             k.error_mean_mm > 0 && k.wall_s > 0) {
           s.x.push_back(k.wall_s);
           s.y.push_back(k.error_mean_mm);
+        }
+      if (!s.x.empty()) fig.series.push_back(s);
+    }
+    if (!o.pair.empty()) {
+      PlotSeries s{"paired", {}, {}, false, true, {}};
+      for (const auto& k : r.runs)
+        if (!k.reference && k.paired_status == "ok" && std::isfinite(k.paired_error_mean_mm) &&
+            k.paired_error_mean_mm > 0 && k.paired_wall_s > 0) {
+          s.x.push_back(k.paired_wall_s);
+          s.y.push_back(k.paired_error_mean_mm);
         }
       if (!s.x.empty()) fig.series.push_back(s);
     }

@@ -40,7 +40,8 @@ TEST(ConvergenceStudy, QuickStudyMeasuresEachSeriesAgainstItsFinestRunAndResumes
   const std::size_t runs = o.ures.size() + o.vres.size() + o.layers.size() + o.dt.size();
   ASSERT_EQ(r.runs.size(), runs);
   // The base model (12 x 8, 1 layer, dt 0.02) is in all four series and simulated once.
-  EXPECT_EQ(r.simulations, static_cast<int>(runs) - 3);
+  // Each distinct model is paired with its static solve: twice as many simulations.
+  EXPECT_EQ(r.simulations, 2 * (static_cast<int>(runs) - 3));
   EXPECT_EQ(simulated, r.simulations);
   EXPECT_TRUE(r.synthetic);
   for (const auto& k : r.runs) {
@@ -63,12 +64,27 @@ TEST(ConvergenceStudy, QuickStudyMeasuresEachSeriesAgainstItsFinestRunAndResumes
   EXPECT_GT(find(r, "dt", "0.01").steps, find(r, "dt", "0.02").steps);
   // Time convergence: halving the step brings the closed surface closer to the finest one.
   EXPECT_GT(find(r, "dt", "0.04").error_mean_mm, find(r, "dt", "0.02").error_mean_mm);
+  // Paired (static_rest=on by default): every model again, brought to rest by the static solve,
+  // against the same references; the same model pairs alike in every series, and the static
+  // end of a model is near its settled end (both are the valve at rest) but not the same run.
+  for (const auto& k : r.runs) {
+    ASSERT_EQ(k.paired_status, "ok") << k.factor << "=" << k.value << ": " << k.paired_reason;
+    EXPECT_TRUE(std::isfinite(k.paired_error_mean_mm)) << k.factor << "=" << k.value;
+    EXPECT_GT(k.paired_difference_mm, 0.0) << k.factor << "=" << k.value;
+    EXPECT_LT(k.paired_difference_mm, 0.25) << k.factor << "=" << k.value;
+  }
+  EXPECT_EQ(find(r, "ures", "12").paired_wall_s, find(r, "dt", "0.02").paired_wall_s);
+  EXPECT_NEAR(find(r, "ures", "16").paired_error_mean_mm,
+              find(r, "ures", "16").paired_difference_mm, 1e-12)
+      << "the reference's own pair: its error is its distance from the reference";
 
   std::ifstream f(dir / "study.json");
   const nlohmann::json j = nlohmann::json::parse(f);
   EXPECT_EQ(j.at("format"), "mvtwin-convergence-study");
   EXPECT_EQ(j.at("runs").size(), runs);
   EXPECT_TRUE(j.at("runs")[0].at("error_mean_mm").is_number());
+  EXPECT_TRUE(j.at("runs")[0].at("paired").at("error_mean_mm").is_number());
+  EXPECT_EQ(j.at("config").at("pair"), nlohmann::json::array({"static_rest=on"}));
   const TableFile t = read_table_file(dir / "study.h5");
   EXPECT_EQ(t.columns.front().strings.size(), runs);
   for (const char* png : {"convergence_ures.png", "convergence_dt.png", "pareto.png"})
@@ -111,6 +127,11 @@ TEST(ConvergenceStudy, InvalidSeriesAreRefused) {
   b = o;
   b.dt = {0.02, -0.01};
   refused(b, "dt");
+  b = o;
+  b.pair = {"static_rest=maybe"};
+  refused(b, "paired run");
+  b.pair = {"no_such_option=1"};
+  refused(b, "no_such_option");
   EXPECT_FALSE(fs::exists(o.out));  // nothing written for refused options
 }
 

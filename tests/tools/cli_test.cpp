@@ -667,10 +667,12 @@ TEST_F(Cli, ImportLabelMapsOfAVirtualPatientAndSimulate) {
 // timed run lags behind rest less than half as much. --ref-set adds to the reference's defaults:
 // the reference keeps their fixed steps (the timed run asks for them) and takes the timed run's
 // grid, dt and tolerance; were the defaults replaced, the reference would take error-controlled
-// steps and the error not be 0.
+// steps and the error not be 0. The paired run (static_rest=on by default) is the same closure
+// brought to rest by the static solve: its residual history is recorded, it ends nearer the
+// grid's own rest than the unsettled run, and two patients give a row each per variant.
 TEST_F(Cli, BenchClosureMeasuresTheLagBehindRest) {
 #ifdef __SANITIZE_ADDRESS__
-  GTEST_SKIP() << "three closures: too long under AddressSanitizer";
+  GTEST_SKIP() << "several closures: too long under AddressSanitizer";
 #endif
   const std::string small =
       " --set ures=12 --set vres=6 --set step_error_mm=0 --ref-set ures=12 --ref-set vres=6 "
@@ -678,30 +680,42 @@ TEST_F(Cli, BenchClosureMeasuresTheLagBehindRest) {
   CmdResult r =
       run("bench closure --set settle_mm=0 --ref-set settle_mm=0" + small + path("rest.json"));
   ASSERT_EQ(r.code, 0) << r.out << r.err;
-  auto read_text = [](const std::string& file) {
-    std::ifstream in(file);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  };
-  auto number_in = [](const std::string& text, const std::string& key) {
-    const size_t at = text.find("\"" + key + "\":");
-    if (at == std::string::npos) return std::nan("");
-    return std::stod(text.substr(at + key.size() + 3, 32));
-  };
-  const std::string text = read_text(path("rest.json"));
-  auto number = [&](const std::string& key) { return number_in(text, key); };
-  EXPECT_EQ(number("error_mean_mm"), 0.0) << "the reference has the timed run's settings";
-  EXPECT_GT(number("rest_lag_mean_mm"), 0.0) << text.substr(0, 3000);
-  EXPECT_GE(number("rest_lag_max_mm"), number("rest_lag_mean_mm"));
-  EXPECT_GT(number("rest_settle_steps"), 0.0);
-  EXPECT_NE(r.out.find("rest_lag_mean_mm"), std::string::npos) << r.out;
-  r = run("bench closure --no-rest" + small + path("norest.json"));
+  auto read = [](const std::string& file) { return nlohmann::json::parse(std::ifstream(file)); };
+  const nlohmann::json j = read(path("rest.json"));
+  ASSERT_EQ(j["runs"].size(), 2u) << j.dump(1).substr(0, 3000);
+  const nlohmann::json& timed = j["runs"][0];
+  const nlohmann::json& paired = j["runs"][1];
+  EXPECT_EQ(timed["variant"], "timed");
+  EXPECT_EQ(timed["error_mean_mm"].get<double>(), 0.0) << "the reference has its settings";
+  EXPECT_GT(timed["rest_lag_mean_mm"].get<double>(), 0.0);
+  EXPECT_GE(timed["rest_lag_max_mm"].get<double>(), timed["rest_lag_mean_mm"].get<double>());
+  EXPECT_GT(timed["rest_settle_steps"].get<double>(), 0.0);
+  EXPECT_NE(r.out.find("lag behind own rest"), std::string::npos) << r.out;
+  EXPECT_EQ(paired["variant"], "paired");
+  EXPECT_EQ(paired["added_settings"], nlohmann::json::array({"static_rest=on"}));
+  ASSERT_TRUE(paired.contains("static_history_n")) << paired.dump(1);
+  EXPECT_GT(paired["static_iterations"].get<int>(), 0);
+  EXPECT_EQ(paired["static_history_n"].size(), paired["static_iterations"].get<size_t>() + 1);
+  EXPECT_LT(paired["rest_lag_mean_mm"].get<double>(), timed["rest_lag_mean_mm"].get<double>());
+  EXPECT_GT(paired["error_mean_mm"].get<double>(), 0.0);
+  r = run("bench closure --no-rest --no-pair --seeds 1,2" + small + path("norest.json"));
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_EQ(read_text(path("norest.json")).find("rest_lag_mean_mm"), std::string::npos);
-  r = run("bench closure --set settle_mm=0.01" + small + path("settled.json"));
+  const nlohmann::json norest = read(path("norest.json"));
+  ASSERT_EQ(norest["runs"].size(), 2u);
+  EXPECT_EQ(norest["runs"][1]["patient_seed"], 2);
+  EXPECT_FALSE(norest["runs"][0].contains("rest_lag_mean_mm"));
+  r = run("bench closure --no-pair --set settle_mm=0.01" + small + path("settled.json"));
   ASSERT_EQ(r.code, 0) << r.out << r.err;
-  const std::string settled = read_text(path("settled.json"));
-  EXPECT_LT(number_in(settled, "rest_lag_mean_mm"), 0.5 * number("rest_lag_mean_mm"))
-      << settled.substr(0, 3000);
+  EXPECT_LT(read(path("settled.json"))["runs"][0]["rest_lag_mean_mm"].get<double>(),
+            0.5 * timed["rest_lag_mean_mm"].get<double>());
+  // Two references need a file each.
+  r = run("bench closure --seeds 1,2 --ref-file " + path("ref.h5") + small + path("x.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("{seed}"), std::string::npos) << r.err;
+  r = run("bench closure --no-pair --pair-set static_rest=on" + small + path("x.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("contradict"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("x.json")));
 }
 
 TEST_F(Cli, StudyCommandsRefuseWhatTheyCannotUse) {
@@ -769,7 +783,8 @@ TEST_F(Cli, QuickConvergenceAndRobustnessStudiesPrintTheirTables) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("(reference)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("[SYNTHETIC]"), std::string::npos) << r.out;
-  EXPECT_NE(r.err.find("[simulate 6/6]"), std::string::npos) << r.err;  // progress
+  EXPECT_NE(r.err.find("[simulate 12/12]"), std::string::npos) << r.err;  // 6 models, paired
+  EXPECT_NE(r.out.find("paired: wall_s"), std::string::npos) << r.out;
   // (study clip --quick runs as the --help examples test runs it)
   r = run("study robustness --quick --runs 3 --out " + path("r"));
   ASSERT_TRUE(r.code == 0 || r.code == 5) << r.err;

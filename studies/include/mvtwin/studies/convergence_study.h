@@ -31,6 +31,10 @@ struct ConvergenceStudyOptions {
   std::vector<int> vres = {10, 20, 30};
   std::vector<int> layers = {1, 2, 3};
   std::vector<double> dt = {0.1, 0.05, 0.01, 0.001, 0.0001};
+  /// Every model is also run with these settings on top (name=value; empty: not paired), its
+  /// error measured against the same references: by default the closed valve at rest by the
+  /// static solve beside settling (issue 40).
+  std::vector<std::string> pair = {"static_rest=on"};
   int jobs = 2;
   std::string command;
   StudyProgress progress;
@@ -53,6 +57,15 @@ struct ConvergenceRun {
   double end_orifice_mm2 = 0;
   /// Against the series' reference, mm (NaN when either failed).
   double error_mean_mm = 0, error_sd_mm = 0, error_p95_mm = 0, error_max_mm = 0;
+  /// The paired run (ConvergenceStudyOptions::pair; status empty when not paired): the same
+  /// model with the pair's settings, against the same reference, and its end against this
+  /// run's end (mean, mm). static_converged: whether its static solve converged (else settling
+  /// finished it).
+  std::string paired_status, paired_reason;
+  double paired_wall_s = 0;
+  int paired_steps = 0;
+  bool paired_static_converged = false;
+  double paired_error_mean_mm = 0, paired_error_max_mm = 0, paired_difference_mm = 0;
 };
 
 struct ConvergenceStudyResult {
