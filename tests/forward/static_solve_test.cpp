@@ -167,5 +167,28 @@ TEST_F(StaticSolve, NewtonConvergesFromTheClosedValve) {
   EXPECT_LE(it2.counters().static_relative_residual, ClosureIntegrator::kStaticStepResidual);
 }
 
+// A static solve that runs out of iterations hands back the state it was given, velocity and
+// all (settling then goes on as if there had been no static solve), whether or not its last
+// iterate had a lower residual, and says so.
+TEST_F(StaticSolve, AFailedSolveLeavesTheStateAsItWasGiven) {
+  for (int iterations : {1, 3}) {
+    ClosureOptions o = options_;
+    o.static_tolerance = 1e-300;  // never converged
+    o.static_step_mm = 0.0;
+    o.static_max_iterations = iterations;
+    ClosureIntegrator it(*scene_, o);
+    ValveState s = closed_;
+    const StepOutcome so = it.solve_static(scene_->duration(), &s);
+    ASSERT_FALSE(so.ok());
+    EXPECT_NE(so.message.find("did not converge"), std::string::npos) << so.message;
+    const std::vector<double>& h = it.counters().static_history;
+    ASSERT_EQ(h.size(), static_cast<size_t>(iterations) + 1);
+    EXPECT_LT(h.back(), h.front()) << iterations;  // Newton made progress, and it is not kept
+    EXPECT_EQ(s.x, closed_.x) << iterations;
+    EXPECT_EQ(s.v, closed_.v) << iterations;
+  }
+  EXPECT_GT(closed_.v.norm(), 0.0);  // so that keeping the velocity is seen
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

@@ -83,8 +83,10 @@ class ClosureIntegrator {
   /// |r| <= kStaticStepResidual |pressure load| (contact's facet normals switch, which leaves a
   /// residual that no small step lowers: docs/forward-status.md); given up after
   /// static_max_iterations. On success state->x is the rest state and state->v zero; on failure
-  /// state->x is the last iterate (v zero). The residual history, the iterations and the time
-  /// are in counters().
+  /// the state is left as it was given (an unconverged iterate may lie farther from rest than
+  /// its start even at a lower residual: settling goes on from the start, as it would have
+  /// without the static solve). The residual history, the iterations and the time are in
+  /// counters().
   StepOutcome solve_static(double tau, ValveState* state);
   static constexpr int kStaticLineSearch = 6;
   /// The residual (fraction of the pressure load) below which a small full step converges.
