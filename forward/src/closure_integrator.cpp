@@ -722,6 +722,7 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   double mu = 0.0, mu_unit = 0.0;  // the shift, in units of K's mean diagonal over M's
   bool linearized = true;          // the last static_forces() was at x
   bool converged = rn <= target;
+  std::vector<double> history{rn};
   int it = 0;
   std::string why;
   for (; !converged && it < options_.static_max_iterations; ++it) {
@@ -774,8 +775,9 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
       // A trial that lowers |r| is always taken (Newton's own test: near the solution the slope
       // r . dx is round-off); otherwise, along a descent direction, the slope's test.
       const double phi = rt.dot(dx);
-      const bool slope_ok = descends && (phi < 0.0 || std::abs(phi) <= 0.9 * std::abs(phi0) ||
-                                         ls + 1 == kStaticLineSearch);
+      const bool slope_ok =
+          descends && rtn <= kStaticResidualGrowth * rn &&
+          (phi < 0.0 || std::abs(phi) <= 0.9 * std::abs(phi0) || ls + 1 == kStaticLineSearch);
       if (rtn < rn || slope_ok) {
         taken = s;
         linearized = true;
@@ -787,6 +789,7 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
       s = descends ? std::clamp(s * phi0 / (phi0 - phi), 0.1 * s, 0.9 * s) : 0.5 * s;
     }
     counters_.static_history.push_back(rn);
+    history.push_back(rn);
     ++counters_.newton_iterations;
     // Converged on the force residual, or (contact's closest features switch between facets,
     // which leaves a residual Newton cannot lower by more than a little per step) when a step
@@ -806,7 +809,17 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
       mu = std::max(4.0 * mu, 1e-4);
     } else {
       mu = std::max(10.0 * mu, 1e-3);
-      if (mu > 1e4) break;
+      if (mu > 1e4) {
+        ++it;
+        why = "no step lowers the residual (Levenberg shift past 1e4)";
+        break;
+      }
+    }
+    if (!converged && static_stalled(history)) {
+      ++it;
+      why = "stalled: the residual has not halved in " + std::to_string(kStaticStallIterations) +
+            " iterations";
+      break;
     }
   }
   finish_counters(rn, load, it);
@@ -827,6 +840,16 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   state->x = x;
   state->v.setZero();
   return {};
+}
+
+bool ClosureIntegrator::static_stalled(const std::vector<double>& history) {
+  const size_t n = history.size();
+  const size_t w = static_cast<size_t>(kStaticStallIterations);
+  if (n <= w) return false;
+  const auto lowest = [&](size_t end) {
+    return *std::min_element(history.begin(), history.begin() + static_cast<std::ptrdiff_t>(end));
+  };
+  return lowest(n) > 0.5 * lowest(n - w);
 }
 
 }  // namespace mvtwin::forward

@@ -3,9 +3,11 @@
 // closure; Newton's convergence from the dynamic closure's end; the static rest against a
 // settled run.
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -188,6 +190,55 @@ TEST_F(StaticSolve, AFailedSolveLeavesTheStateAsItWasGiven) {
     EXPECT_EQ(s.v, closed_.v) << iterations;
   }
   EXPECT_GT(closed_.v.norm(), 0.0);  // so that keeping the velocity is seen
+}
+
+// Histories from bench closure's virtual patients (docs/forward-status.md): patient 3's, where the
+// residual stalls near a twentieth of the load, is given up eight iterations after its lowest
+// point; patient 4's slow middle and patient 5's quadratic tail are not.
+TEST(StaticStall, GivesUpOnlyWhereTheLowestResidualHasNotHalvedInEightIterations) {
+  const std::vector<double> p3{0.996,  0.587,  0.0739, 0.0721, 0.07,   0.00903, 0.0834,
+                               0.0751, 0.0651, 0.0638, 0.0571, 0.0571, 0.0178,  0.13};
+  const std::vector<double> p4{0.228,    0.0238,  0.0199,   0.00134,  0.00116,
+                               0.000876, 0.00073, 0.000597, 0.000575, 0.000108};
+  const std::vector<double> p5{0.923, 0.147, 0.00839, 0.000104, 6.74e-09};
+  int stalled_at = -1;
+  for (size_t n = 1; n <= p3.size() && stalled_at < 0; ++n)
+    if (ClosureIntegrator::static_stalled({p3.begin(), p3.begin() + static_cast<long>(n)}))
+      stalled_at = static_cast<int>(n) - 1;  // iterations done
+  EXPECT_EQ(stalled_at, 5 + ClosureIntegrator::kStaticStallIterations);
+  for (const auto* h : {&p4, &p5})
+    for (size_t n = 1; n <= h->size(); ++n)
+      EXPECT_FALSE(
+          ClosureIntegrator::static_stalled({h->begin(), h->begin() + static_cast<long>(n)}))
+          << n;
+  // A plateau long enough stalls; one that still halves does not.
+  std::vector<double> halving{1.0};
+  for (int i = 0; i < 30; ++i) halving.push_back(halving.back() * 0.9);
+  EXPECT_FALSE(ClosureIntegrator::static_stalled(halving));
+  EXPECT_TRUE(ClosureIntegrator::static_stalled(std::vector<double>(9, 1.0)));  // 8 iterations
+  EXPECT_FALSE(ClosureIntegrator::static_stalled(std::vector<double>(8, 1.0)));
+}
+
+// Asked for a residual below round-off, Newton reaches round-off and stalls there: it stops long
+// before its iteration cap and says why, and no iterate raised |r| past kStaticResidualGrowth.
+TEST_F(StaticSolve, StopsWhenStalledAtRoundOff) {
+  ClosureOptions o = options_;
+  o.static_tolerance = 1e-300;
+  o.static_step_mm = 0.0;
+  o.static_max_iterations = 60;
+  ClosureIntegrator it(*scene_, o);
+  ValveState s = closed_;
+  const StepOutcome so = it.solve_static(scene_->duration(), &s);
+  ASSERT_FALSE(so.ok());
+  EXPECT_NE(so.message.find("stalled"), std::string::npos) << so.message;
+  const std::vector<double>& h = it.counters().static_history;
+  EXPECT_LT(h.size(), 41u);
+  EXPECT_LT(h.back(), 1e-6 * h.front());  // it got to round-off first
+  for (size_t i = 1; i < h.size(); ++i)
+    EXPECT_LE(h[i], ClosureIntegrator::kStaticResidualGrowth * h[i - 1]) << i;
+  std::printf("  residual per iteration, N:");
+  for (double r : h) std::printf(" %.3g", r);
+  std::printf("\n");
 }
 
 }  // namespace

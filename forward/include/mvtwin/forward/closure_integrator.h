@@ -82,15 +82,24 @@ class ClosureIntegrator {
   /// free dofs), or when a Newton correction moves no node by more than static_step_mm with
   /// |r| <= kStaticStepResidual |pressure load| (contact's facet normals switch, which leaves a
   /// residual that no small step lowers: docs/forward-status.md); given up after
-  /// static_max_iterations. On success state->x is the rest state and state->v zero; on failure
-  /// the state is left as it was given (an unconverged iterate may lie farther from rest than
-  /// its start even at a lower residual: settling goes on from the start, as it would have
-  /// without the static solve). The residual history, the iterations and the time are in
-  /// counters().
+  /// static_max_iterations, or earlier when Newton stalls (static_stalled). A line-search trial
+  /// that raises |r| by more than kStaticResidualGrowth is refused whatever its slope. On success
+  /// state->x is the rest state and state->v zero; on failure the state is left as it was given (an
+  /// unconverged iterate may lie farther from rest than its start even at a lower residual:
+  /// settling goes on from the start, as it would have without the static solve). The residual
+  /// history, the iterations and the time are in counters().
   StepOutcome solve_static(double tau, ValveState* state);
   static constexpr int kStaticLineSearch = 6;
   /// The residual (fraction of the pressure load) below which a small full step converges.
   static constexpr double kStaticStepResidual = 1e-2;
+  /// The most a line-search trial may raise |r| and still pass the slope's test. Along a right
+  /// step |r| may rise some (the stiff in-plane dofs); on bench closure's virtual patient 3 the
+  /// slope's test took a trial that raised it 128-fold, and Newton never recovered.
+  static constexpr double kStaticResidualGrowth = 10.0;
+  /// Newton has stalled when its lowest residual so far has not halved over the last
+  /// kStaticStallIterations iterations (history: |r| at the start and after each iteration).
+  static constexpr int kStaticStallIterations = 8;
+  static bool static_stalled(const std::vector<double>& history);
   /// Forces (N, all dofs) of the static problem at positions x and time tau: minus the elastic
   /// gradient, chordae and clips, contact without friction and the pressure (whose part alone
   /// goes to *pressure when not null); keeps each term's linearization for the static tangent.
