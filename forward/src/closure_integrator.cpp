@@ -715,6 +715,7 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
     o.message += " at the static solve's start";
     return o;
   }
+  const size_t history_start = counters_.static_history.size();  // this solve's |r| from here
   counters_.static_history.push_back(rn);
   const double target = options_.static_tolerance * std::max(load, 1e-300);
   const double step_target_n = kStaticStepResidual * std::max(load, 1e-300);
@@ -722,7 +723,6 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   double mu = 0.0, mu_unit = 0.0;  // the shift, in units of K's mean diagonal over M's
   bool linearized = true;          // the last static_forces() was at x
   bool converged = rn <= target;
-  std::vector<double> history{rn};
   int it = 0;
   std::string why;
   for (; !converged && it < options_.static_max_iterations; ++it) {
@@ -789,7 +789,6 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
       s = descends ? std::clamp(s * phi0 / (phi0 - phi), 0.1 * s, 0.9 * s) : 0.5 * s;
     }
     counters_.static_history.push_back(rn);
-    history.push_back(rn);
     ++counters_.newton_iterations;
     // Converged on the force residual, or (contact's closest features switch between facets,
     // which leaves a residual Newton cannot lower by more than a little per step) when a step
@@ -815,7 +814,7 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
         break;
       }
     }
-    if (!converged && static_stalled(history)) {
+    if (!converged && static_stalled(std::span(counters_.static_history).subspan(history_start))) {
       ++it;
       why = "stalled: the residual has not halved in " + std::to_string(kStaticStallIterations) +
             " iterations";
@@ -842,7 +841,7 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   return {};
 }
 
-bool ClosureIntegrator::static_stalled(const std::vector<double>& history) {
+bool ClosureIntegrator::static_stalled(std::span<const double> history) {
   const size_t n = history.size();
   const size_t w = static_cast<size_t>(kStaticStallIterations);
   if (n <= w) return false;

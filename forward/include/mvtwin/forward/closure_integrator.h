@@ -1,6 +1,7 @@
 #pragma once
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -99,7 +100,7 @@ class ClosureIntegrator {
   /// Newton has stalled when its lowest residual so far has not halved over the last
   /// kStaticStallIterations iterations (history: |r| at the start and after each iteration).
   static constexpr int kStaticStallIterations = 8;
-  static bool static_stalled(const std::vector<double>& history);
+  static bool static_stalled(std::span<const double> history);
   /// Forces (N, all dofs) of the static problem at positions x and time tau: minus the elastic
   /// gradient, chordae and clips, contact without friction and the pressure (whose part alone
   /// goes to *pressure when not null); keeps each term's linearization for the static tangent.
