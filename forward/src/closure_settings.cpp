@@ -93,6 +93,8 @@ const std::map<std::string, Field>& fields() {
     dbl("contact_distance_mm", [](ClosureOptions& o) -> double& { return o.contact.contact_mm; });
     dbl("contact_friction", [](ClosureOptions& o) -> double& { return o.contact.friction; });
     dbl("inversion_guard", [](ClosureOptions& o) -> double& { return o.inversion_guard; });
+    dbl("contact_ccd_depth_mm",
+        [](ClosureOptions& o) -> double& { return o.contact.ccd_depth_mm; });
     dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact.wall_factor; });
     dbl("contact_stiffness_factor",
         [](ClosureOptions& o) -> double& { return o.contact.stiffness_factor; });
@@ -286,6 +288,8 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
     // The static solve's options only where it is on: descriptions (result files, study
     // folders' configurations) made before it existed stay the same.
     if (!o.static_rest && n.rfind("static_", 0) == 0) continue;
+    // Likewise the crossing depth at 0, every pass a crossing as before it existed.
+    if (n == "contact_ccd_depth_mm" && o.contact.ccd_depth_mm == 0) continue;
     out.emplace_back(n, f.get(o));
   }
   return out;
@@ -307,6 +311,9 @@ std::vector<std::pair<std::string, std::string>> result_options(
   if (stat == out.end() || stat->second != "on") {
     std::erase_if(out, [](const auto& kv) { return kv.first.rfind("static_", 0) == 0; });
   }
+  std::erase_if(out, [](const auto& kv) {
+    return kv.first == "contact_ccd_depth_mm" && std::strtod(kv.second.c_str(), nullptr) == 0;
+  });
   return out;
 }
 

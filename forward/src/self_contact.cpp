@@ -153,6 +153,8 @@ bool SelfContactOptions::is_valid(std::string* error) const {
     return bad("contact wall factor must be in [0, 1e4]");
   if (!(exclusion_mm >= 0 && margin_mm > 0))
     return bad("contact exclusion must be >= 0 and margin > 0 mm");
+  if (!(ccd_depth_mm >= 0 && ccd_depth_mm <= contact_mm))
+    return bad("contact_ccd_depth_mm must be in [0, contact distance]");
   return true;
 }
 
@@ -411,30 +413,36 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
 
 namespace {
 
-/// Whether p passes into the solid through triangle (a, b, c) as all four move linearly from
-/// t = 0 to 1: a root of the cubic coplanarity f(t) = det[b - a, c - a, p - a](t) where p lies
-/// inside the triangle, with p ending on the inner side (opposite to `outward`, +1 along
-/// (b - a) x (c - a)). A vertex that had sunk slightly in and comes back out is not a crossing.
+/// Whether p passes into the solid through triangle (a, b, c), deeper than `depth`, as all four
+/// move linearly from t = 0 to 1: a root of g(t), p's signed distance from the triangle's plane
+/// moved `depth` inwards (positive outside; `outward` is +1 when (b - a) x (c - a) points out),
+/// where p lies over the triangle, with p ending deeper than `depth` on the inner side. A vertex
+/// that had sunk slightly in and comes back out is not a crossing, nor is one that ends less
+/// than `depth` in: the contact law pushes it back out (with depth 0, every pass is one).
 bool vertex_triangle_crossing(const Eigen::Vector3d p[2], const Eigen::Vector3d a[2],
-                              const Eigen::Vector3d b[2], const Eigen::Vector3d c[2], int outward) {
+                              const Eigen::Vector3d b[2], const Eigen::Vector3d c[2], int outward,
+                              double depth) {
   auto at = [](const Eigen::Vector3d q[2], double t) {
     return Eigen::Vector3d((1 - t) * q[0] + t * q[1]);
   };
   auto f = [&](double t) {
     const Eigen::Vector3d A = at(a, t);
-    return (at(b, t) - A).cross(at(c, t) - A).dot(at(p, t) - A);
+    const Eigen::Vector3d n = (at(b, t) - A).cross(at(c, t) - A);
+    const double plane = n.dot(at(p, t) - A);
+    // depth 0: the coplanarity cubic itself (no division, exact for a degenerate triangle).
+    return depth > 0 ? outward * plane / n.norm() + depth : outward * plane;
   };
   auto inside = [&](double t) {
     const Eigen::Vector3d A = at(a, t), B = at(b, t), C = at(c, t), P = at(p, t);
     const Eigen::Vector3d w = barycentric(P, A, B, C);
     const double tol = 1e-6;
     return w.minCoeff() >= -tol &&
-           (P - (w[0] * A + w[1] * B + w[2] * C)).norm() < 1e-6 + 1e-3 * (B - A).norm();
+           (P - (w[0] * A + w[1] * B + w[2] * C)).norm() < depth + 1e-6 + 1e-3 * (B - A).norm();
   };
-  // A cubic has at most 3 roots: sample finely enough to separate them on valve-scale motion,
-  // then bisect each sign change.
+  // g is a cubic (depth 0) or a cubic over a smooth positive norm plus a constant: sample
+  // finely enough to separate its roots on valve-scale motion, then bisect each sign change.
   constexpr int kSamples = 16;
-  if (f(1.0) * outward >= 0) return false;  // ends outside
+  if (!(f(1.0) < 0)) return false;  // ends outside, or less than `depth` in
   double t0 = 0.0, f0 = f(0.0);
   if (f0 == 0.0 && inside(0.0)) return true;
   for (int k = 1; k <= kSamples; ++k) {
@@ -474,6 +482,9 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
   }
   for (int v : s_.vertices)
     step_motion = std::max(step_motion, (x1.segment<3>(3 * v) - x0.segment<3>(3 * v)).norm());
+  // Never as deep as the leaflet's other face answers (max_depth_mm_), where the law would push
+  // the vertex on through.
+  const double depth = std::min(opt_.ccd_depth_mm, 0.5 * max_depth_mm_);
   auto test = [&](int i, int t) {
     const int v = s_.vertices[i];
     const auto& tri = s_.triangles[t];
@@ -481,7 +492,7 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
     const Eigen::Vector3d a[2] = {x0.segment<3>(3 * tri[0]), x1.segment<3>(3 * tri[0])};
     const Eigen::Vector3d b[2] = {x0.segment<3>(3 * tri[1]), x1.segment<3>(3 * tri[1])};
     const Eigen::Vector3d c[2] = {x0.segment<3>(3 * tri[2]), x1.segment<3>(3 * tri[2])};
-    return vertex_triangle_crossing(p, a, b, c, s_.triangle_outward[t]);
+    return vertex_triangle_crossing(p, a, b, c, s_.triangle_outward[t], depth);
   };
   // Two halves at once (run_both): the first crossing of the first half, else of the second,
   // is the first crossing in order.
@@ -516,9 +527,10 @@ int SelfContact::find_crossing(const Eigen::VectorXd& x0, const Eigen::VectorXd&
           hi = hi.cwiseMax(x->segment<3>(3 * tri[k]));
         }
       }
-      // A crossing point lies on the vertex's segment and on the triangle, so in both boxes
-      // (grown by more than the crossing test's tolerance, 1e-3 x an edge + 1e-6 mm).
-      const double slack = 1e-2 + 1e-3 * (hi - lo).norm();
+      // A crossing point lies on the vertex's segment and within `depth` of the triangle, so in
+      // both boxes (grown by depth and more than the crossing test's tolerance, 1e-3 x an edge +
+      // 1e-6 mm).
+      const double slack = 1e-2 + depth + 1e-3 * (hi - lo).norm();
       const Eigen::Vector3d reach_lo = lo.array() - slack, reach_hi = hi.array() + slack;
       // A vertex's segment midpoint is within step_motion / 2 of every point of it.
       lo.array() -= 0.5 * step_motion + 1e-9;

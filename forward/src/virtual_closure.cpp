@@ -46,6 +46,17 @@ std::vector<ObservationAttempt> observation_attempts(const ClosureOptions& simul
                      " s, max_dt " + fmt(o.max_dt) + " s, newton_iterations " +
                      std::to_string(o.newton_iterations),
                  o});
+  // The law, not the stepping: a vertex pressed edge-on harder than the contact wall holds comes
+  // to rest on the other leaflet's surface itself, crosses and uncrosses it by round-off, and
+  // every step is refused however small (virtual-3030-30). A tenfold wall below the contact
+  // distance holds it off the surface, and a crossing less than 0.1 mm deep is left to the law.
+  o = simulation;
+  o.contact.wall_factor = std::min(1e4, 10 * simulation.contact.wall_factor);
+  o.contact.ccd_depth_mm =
+      std::max(simulation.contact.ccd_depth_mm, std::min(0.1, simulation.contact.contact_mm));
+  out.push_back({"retry 3: contact_wall_factor " + fmt(o.contact.wall_factor) +
+                     ", contact_ccd_depth_mm " + fmt(o.contact.ccd_depth_mm),
+                 o});
   return out;
 }
 

@@ -599,10 +599,32 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
   unsettled.settle_mm = 0.0;
   EXPECT_EQ(settle_keys(describe_result_options(unsettled)), 0);
   EXPECT_EQ(settle_keys(result_options({{"dt", "0.01"}, {"settle_max_s", "5"}})), 0);
+  // The crossing depth only where it is set (descriptions, and so the observation caches' keys,
+  // from before it existed stay the same).
+  auto has_depth = [](const std::vector<std::pair<std::string, std::string>>& d) {
+    return std::any_of(d.begin(), d.end(),
+                       [](const auto& kv) { return kv.first == "contact_ccd_depth_mm"; });
+  };
+  ClosureOptions tolerant = o;
+  tolerant.contact.ccd_depth_mm = 0.1;
+  EXPECT_FALSE(has_depth(describe_result_options(o)));
+  EXPECT_TRUE(has_depth(describe_result_options(tolerant)));
+  EXPECT_FALSE(has_depth(result_options({{"dt", "0.01"}, {"contact_ccd_depth_mm", "0"}})));
+  {
+    ClosureOptions too_deep = o;
+    apply_option("contact_ccd_depth_mm=0.5", &too_deep);
+    std::string why;
+    EXPECT_FALSE(too_deep.is_valid(&why));
+    EXPECT_NE(why.find("contact_ccd_depth_mm must be in [0, contact distance]"), std::string::npos)
+        << why;
+  }
   // Every described option can be set back from its description.
-  ClosureOptions copy;
-  for (const auto& [name, value] : describe_options(o)) apply_option(name + "=" + value, &copy);
-  EXPECT_EQ(describe_options(copy), describe_options(o));
+  for (const ClosureOptions& given : {o, tolerant}) {
+    ClosureOptions copy;
+    for (const auto& [name, value] : describe_options(given))
+      apply_option(name + "=" + value, &copy);
+    EXPECT_EQ(describe_options(copy), describe_options(given));
+  }
 }
 
 // Settling (settle_mm > 0): after the closure the load and the boundary are held and the steps

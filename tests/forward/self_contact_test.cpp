@@ -204,6 +204,39 @@ TEST(SelfContact, CrossingInOneStepIsCaught) {
   EXPECT_EQ(c2.find_crossing(far.x, moved), -1);
 }
 
+// With ccd_depth_mm a step may leave a vertex up to that deep inside the other plate (the law
+// pushes it back out): what is crossed is the surface moved inwards by the depth, so a vertex
+// resting on the surface and passing it by round-off is not refused, and a deeper one is, also
+// from a start already inside. Both searches: the candidate list (plates 0.3 mm apart at the
+// search) and the swept boxes (1 mm apart, the step moves farther than margin / 2).
+TEST(SelfContact, CrossingsShallowerThanTheCcdDepthAreLeftToTheLaw) {
+  for (double gap : {0.3, 1.0}) {
+    Plates p = make_plates(4, gap);
+    SelfContactOptions tolerant = options();
+    tolerant.ccd_depth_mm = 0.1;
+    SelfContact strict(p.surface, options(), kStiffness, kMaxDepth),
+        c(p.surface, tolerant, kStiffness, kMaxDepth);
+    strict.detect(p.x);
+    c.detect(p.x);
+    auto upper_at = [&](double z) {
+      Eigen::VectorXd x = p.x;
+      for (int i = 16; i < 32; ++i) x[3 * i + 2] = z;
+      return x;
+    };
+    const Eigen::VectorXd above = upper_at(0.01), shallow = upper_at(-0.05), deep = upper_at(-0.2);
+    EXPECT_GE(strict.find_crossing(above, shallow), 0) << "gap " << gap;
+    EXPECT_EQ(c.find_crossing(above, shallow), -1) << "gap " << gap;
+    EXPECT_GE(c.find_crossing(above, deep), 0) << "gap " << gap;
+    EXPECT_GE(c.find_crossing(shallow, deep), 0) << "gap " << gap;
+    EXPECT_EQ(strict.find_crossing(shallow, deep), -1) << "started inside: not a crossing";
+    EXPECT_EQ(c.find_crossing(deep, shallow), -1) << "on the way back out";
+    EXPECT_EQ(c.find_crossing(deep, above), -1) << "on the way back out";
+  }
+  SelfContactOptions too_deep = options();
+  too_deep.ccd_depth_mm = 2 * too_deep.contact_mm;
+  EXPECT_THROW(SelfContact(make_plates(2, 1.0).surface, too_deep, kStiffness, kMaxDepth), Error);
+}
+
 // A strip of the unrolled plane (u along it, v across; spacing 0.5 mm) folded in 3D into a U:
 // the arms face each other `gap` mm apart, with random bumps of up to 0.08 mm. Vertices of one arm
 // pair with triangles of the other where they are more than the exclusion distance apart along the

@@ -84,11 +84,21 @@ TEST(VirtualClosure, AFailedObservationIsRetriedWithSaferStepsAndSaysSo) {
 
   // The ladder: the same model, stepped more carefully each time, recorded at the same times.
   const auto a = observation_attempts(o.simulation);
-  ASSERT_EQ(a.size(), 3u);
+  ASSERT_EQ(a.size(), 4u);
   EXPECT_TRUE(a[0].setting.empty());
   EXPECT_EQ(a[1].simulation.max_step_halvings, 3);
   EXPECT_DOUBLE_EQ(a[2].simulation.dt, 0.025);
   EXPECT_GE(a[2].simulation.newton_iterations, 2);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_DOUBLE_EQ(a[k].simulation.contact.wall_factor, o.simulation.contact.wall_factor);
+    EXPECT_DOUBLE_EQ(a[k].simulation.contact.ccd_depth_mm, 0.0);
+  }
+  // The last changes the contact wall only, and says so.
+  EXPECT_DOUBLE_EQ(a[3].simulation.contact.wall_factor, 10 * o.simulation.contact.wall_factor);
+  EXPECT_DOUBLE_EQ(a[3].simulation.contact.ccd_depth_mm, 0.1);
+  EXPECT_DOUBLE_EQ(a[3].simulation.dt, o.simulation.dt);
+  EXPECT_EQ(a[3].simulation.max_step_halvings, o.simulation.max_step_halvings);
+  EXPECT_EQ(a[3].setting, "retry 3: contact_wall_factor 1000, contact_ccd_depth_mm 0.1");
   for (const auto& x : a) {
     EXPECT_EQ(x.simulation.model.ures, 20);
     EXPECT_EQ(x.simulation.contact.stiffness_factor, o.simulation.contact.stiffness_factor);

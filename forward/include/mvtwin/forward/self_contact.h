@@ -28,6 +28,13 @@ struct SelfContactOptions {
   /// Continuous collision detection at the end of every step (SelfContact::find_crossing): a
   /// step that carries a vertex through a leaflet surface is retried with half the step.
   bool ccd = true;
+  /// A step may leave a vertex up to this deep inside a leaflet's surface (mm) before continuous
+  /// collision detection calls it a crossing; the contact law pushes a shallow one back out.
+  /// 0 (the default): every pass through a surface is a crossing. A vertex pressed so hard that
+  /// the law holds it at the surface itself (d = 0) then crosses and uncrosses it by round-off
+  /// and every step is refused: the observation's last retry allows 0.1 mm
+  /// (forward::observation_attempts; docs/virtual-patients.md). At most the contact distance.
+  double ccd_depth_mm = 0.0;
   double exclusion_mm = 4.0;  ///< surface neighbours closer than this (unrolled) never pair
   double margin_mm = 1.5;     ///< Verlet margin of the candidate list
 

@@ -43,9 +43,12 @@ struct ObservationAttempt {
 /// retry 1: 3 more step halvings and settling steps of at most a quarter of settle_max_dt (the
 /// failures seen: a node driven through a leaflet by a large settling step, an element inverted
 /// in a step that three halvings did not save); retry 2: also half the step (dt and max_dt) and
-/// at least 2 Newton iterations per step. Each is the same physical model (mesh, material,
+/// at least 2 Newton iterations per step. These are the same physical model (mesh, material,
 /// contact, load); only how the dynamics is stepped changes, and the closed valve is at rest
-/// either way (settle_mm).
+/// either way (settle_mm). Retry 3, the model as given but for its contact wall: ten times the
+/// wall factor (the stiffness below the contact distance; the law above it unchanged) and a
+/// crossing less than 0.1 mm deep left to the law (SelfContactOptions::ccd_depth_mm), for a
+/// vertex pressed edge-on harder than the wall holds (docs/virtual-patients.md).
 std::vector<ObservationAttempt> observation_attempts(const ClosureOptions& simulation);
 
 /// Simulates the closure of a synthetic patient with its hidden parameters and fills the
