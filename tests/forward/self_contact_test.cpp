@@ -232,6 +232,21 @@ TEST(SelfContact, CrossingsShallowerThanTheCcdDepthAreLeftToTheLaw) {
     EXPECT_EQ(c.find_crossing(deep, shallow), -1) << "on the way back out";
     EXPECT_EQ(c.find_crossing(deep, above), -1) << "on the way back out";
   }
+  // Never as deep as half the depth where the leaflet's other face answers: with a maximum
+  // depth of 0.1 mm the 0.1 mm allowed becomes 0.05.
+  {
+    Plates p = make_plates(4, 1.0);
+    SelfContactOptions tolerant = options();
+    tolerant.ccd_depth_mm = 0.1;
+    SelfContact thin(p.surface, tolerant, kStiffness, 0.1);
+    thin.detect(p.x);
+    Eigen::VectorXd above = p.x, in = p.x;
+    for (int i = 16; i < 32; ++i) {
+      above[3 * i + 2] = 0.01;
+      in[3 * i + 2] = -0.08;
+    }
+    EXPECT_GE(thin.find_crossing(above, in), 0);
+  }
   SelfContactOptions too_deep = options();
   too_deep.ccd_depth_mm = 2 * too_deep.contact_mm;
   EXPECT_THROW(SelfContact(make_plates(2, 1.0).surface, too_deep, kStiffness, kMaxDepth), Error);
