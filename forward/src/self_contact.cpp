@@ -199,6 +199,26 @@ SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double st
     triangle_outside2_.push_back(outside * outside);
   }
   for (int vp : s_.vertex_plane) vertex_uv_.push_back(s_.plane.row(vp).transpose());
+  // Connectivity for the distances' signs at edges and corners.
+  {
+    std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> edges;  // -> (triangle, k)
+    for (size_t t = 0; t < s_.triangles.size(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const int a = s_.triangles[t][k], b = s_.triangles[t][(k + 1) % 3];
+        edges[{std::min(a, b), std::max(a, b)}].emplace_back(static_cast<int>(t), k);
+        node_triangles_[a].push_back(static_cast<int>(t));
+      }
+    }
+    edge_neighbour_.assign(s_.triangles.size(), {-1, -1, -1});
+    for (const auto& [e, sides] : edges) {
+      if (sides.size() == 2) {  // a manifold edge; more than two: left as boundary
+        edge_neighbour_[sides[0].first][sides[0].second] = sides[1].first;
+        edge_neighbour_[sides[1].first][sides[1].second] = sides[0].first;
+      } else {
+        node_on_boundary_[e.first] = node_on_boundary_[e.second] = true;
+      }
+    }
+  }
   // Each group's corners around the mean of its triangles' centres (unrolled next to the first
   // one's; any centre is correct, a central one makes the test decide more vertices).
   for (size_t t0 = 0; t0 < s_.triangles.size(); t0 += kSearchGroup) {
@@ -325,6 +345,45 @@ void SelfContact::full_search(const Eigen::VectorXd& x) {
   x_search_ = x;
 }
 
+signed char SelfContact::feature_side(const Eigen::VectorXd& x, int t, const Eigen::Vector3d& w,
+                                      const Eigen::Vector3d& p_minus_q) const {
+  const auto outward_normal = [&](int tri) {
+    const auto& T = s_.triangles[tri];
+    const Eigen::Vector3d a = x.segment<3>(3 * T[0]), b = x.segment<3>(3 * T[1]),
+                          c = x.segment<3>(3 * T[2]);
+    return Eigen::Vector3d(s_.triangle_outward[tri] * (b - a).cross(c - a).normalized());
+  };
+  int zeros = 0, corner = 0, opposite = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (w[k] <= 1e-9) {
+      ++zeros;
+      opposite = k;
+    } else {
+      corner = k;
+    }
+  }
+  Eigen::Vector3d pseudo = Eigen::Vector3d::Zero();
+  if (zeros == 1) {
+    // The edge opposite corner `opposite`: edge k = opposite + 1 joins corners k and k + 1.
+    const int across = edge_neighbour_[t][(opposite + 1) % 3];
+    if (across < 0) return 1;
+    pseudo = outward_normal(t) + outward_normal(across);
+  } else {
+    const int node = s_.triangles[t][corner];
+    if (const auto b = node_on_boundary_.find(node); b != node_on_boundary_.end()) return 1;
+    const Eigen::Vector3d v = x.segment<3>(3 * node);
+    for (int tri : node_triangles_.at(node)) {
+      const auto& T = s_.triangles[tri];
+      const int j = T[0] == node ? 0 : T[1] == node ? 1 : 2;
+      const Eigen::Vector3d e1 = x.segment<3>(3 * T[(j + 1) % 3]) - v,
+                            e2 = x.segment<3>(3 * T[(j + 2) % 3]) - v;
+      const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+      pseudo += angle * outward_normal(tri);
+    }
+  }
+  return p_minus_q.dot(pseudo) < 0.0 ? -1 : 1;
+}
+
 void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
                                 std::vector<Pair>* pairs, double* min_distance) const {
   // Closest candidate triangle per vertex and triangle group.
@@ -334,6 +393,7 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
     const Eigen::Vector3d p = x.segment<3>(3 * s_.vertices[i]);
     std::array<Pair, 2> best{};
     for (Pair& b : best) b.distance = std::numeric_limits<double>::infinity();
+    std::array<double, 2> best_len{best[0].distance, best[1].distance};
     for (; k < k1 && candidates_[k].vertex == i; ++k) {
       const int t = candidates_[k].triangle;
       const int g = s_.triangle_group.empty() ? 0 : (s_.triangle_group[t] != 0);
@@ -344,19 +404,30 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
       const Eigen::Vector3d w = barycentric(q, a, b, c);
       // Over the face: the distance signed by the face's outward side (negative inside the
       // leaflet), so that a vertex pushed in is pushed back out; deeper than max_depth the
-      // leaflet's other face is nearer and answers. Beyond an edge or corner (around the free
-      // edge): the plain distance.
+      // leaflet's other face is nearer and answers. Beyond an edge or a corner the distance is
+      // signed by that feature's pseudo-normal (feature_side): a vertex sunk in under a valley
+      // between two faces, where neither face is under it, is inside too, and is pushed out (the
+      // plain distance pushed it in). The closest triangle is the one nearest the vertex (the
+      // unsigned distance), so that a far triangle's corner below an inside vertex does not answer
+      // for the face over it.
       Eigen::Vector3d n;
       double d;
+      signed char side = 1;
+      const double len = (p - q).norm();
       if (w.minCoeff() > 1e-9) {
         n = s_.triangle_outward[t] * (b - a).cross(c - a).normalized();
         d = n.dot(p - q);
-        if (d < -max_depth_mm_) continue;
       } else {
-        d = (p - q).norm();
-        n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
+        side = feature_side(x, t, w, p - q);
+        d = side * len;
+        n = len > 1e-12
+                ? Eigen::Vector3d((p - q) / d)
+                : Eigen::Vector3d(s_.triangle_outward[t] * (b - a).cross(c - a).normalized());
       }
-      if (d < best[g].distance) {
+      if (d < -max_depth_mm_) continue;
+      if (len < best_len[g]) {
+        best_len[g] = len;
+        best[g].side = side;
         best[g].distance = d;
         best[g].vertex = s_.vertices[i];
         best[g].tri = s_.triangles[t];
@@ -608,10 +679,11 @@ void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scal
 
 namespace {
 // grad d of a vertex p over triangle (a, b, c) (12 entries: p, a, b, c), with the distance's
-// definition of closest_pairs(): signed by the face's outward side over the face, the plain
-// distance beyond an edge or a corner.
+// definition of closest_pairs(): signed by the face's outward side over the face, beyond an
+// edge or a corner the plain distance times the pair's side (its sign does not change under the
+// difference's 1e-6 mm).
 Eigen::Matrix<double, 12, 1> distance_gradient(const Eigen::Matrix<double, 12, 1>& X,
-                                               signed char outward) {
+                                               signed char outward, signed char side) {
   const Eigen::Vector3d p = X.segment<3>(0), a = X.segment<3>(3), b = X.segment<3>(6),
                         c = X.segment<3>(9);
   const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
@@ -620,8 +692,9 @@ Eigen::Matrix<double, 12, 1> distance_gradient(const Eigen::Matrix<double, 12, 1
   if (w.minCoeff() > 1e-9) {
     n = outward * (b - a).cross(c - a).normalized();
   } else {
-    const double d = (p - q).norm();
-    n = d > 1e-12 ? Eigen::Vector3d((p - q) / d) : (b - a).cross(c - a).normalized();
+    const double len = (p - q).norm();
+    n = len > 1e-12 ? Eigen::Vector3d(side * (p - q) / len)
+                    : Eigen::Vector3d(outward * (b - a).cross(c - a).normalized());
   }
   Eigen::Matrix<double, 12, 1> g;
   g << n, -w[0] * n, -w[1] * n, -w[2] * n;
@@ -640,14 +713,15 @@ void SelfContact::linearize_exact(const Eigen::VectorXd& x) {
     const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
     Eigen::Matrix<double, 12, 1> X;
     for (int a = 0; a < 4; ++a) X.segment<3>(3 * a) = x.segment<3>(3 * nodes[a]);
-    const Eigen::Matrix<double, 12, 1> g = distance_gradient(X, pr.outward);
+    const Eigen::Matrix<double, 12, 1> g = distance_gradient(X, pr.outward, pr.side);
     Eigen::Matrix<double, 12, 12> hess;
     for (int j = 0; j < 12; ++j) {
       Eigen::Matrix<double, 12, 1> Xp = X, Xm = X;
       Xp[j] += eps;
       Xm[j] -= eps;
-      hess.col(j) =
-          (distance_gradient(Xp, pr.outward) - distance_gradient(Xm, pr.outward)) / (2 * eps);
+      hess.col(j) = (distance_gradient(Xp, pr.outward, pr.side) -
+                     distance_gradient(Xm, pr.outward, pr.side)) /
+                    (2 * eps);
     }
     // f = F(d) grad d, dF/dd = -stiffness: K = -df/dx = stiffness g g^T - F hess d.
     K = pr.stiffness * g * g.transpose() - pr.force * 0.5 * (hess + hess.transpose());

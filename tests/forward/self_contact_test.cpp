@@ -252,6 +252,97 @@ TEST(SelfContact, CrossingsShallowerThanTheCcdDepthAreLeftToTheLaw) {
   EXPECT_THROW(SelfContact(make_plates(2, 1.0).surface, too_deep, kStiffness, kMaxDepth), Error);
 }
 
+// The lower plate of make_plates(5, 2.0) bent into a valley along x = 2 (z = slope |x - 2|) or a
+// bowl around its node (2, 2) (z = slope x the distance from it): concave seen from outside (+z),
+// so that a point just below the valley's floor has no face under it, only the floor's edges or
+// its corner. One vertex of the upper plate (node 31) is put at `at`; the upper plate, 2 mm up,
+// keeps its vertices only, so that node 31's pair is the only one.
+Plates valley(bool bowl, const Eigen::Vector3d& at, double slope = 0.2) {
+  Plates p = make_plates(5, 2.0);
+  p.surface.triangles.resize(32);
+  p.surface.triangle_plane.resize(32);
+  p.surface.triangle_outward.resize(32);
+  for (int id = 0; id < 25; ++id) {
+    const double i = id % 5, j = id / 5;
+    p.x[3 * id + 2] = slope * (bowl ? std::hypot(i - 2.0, j - 2.0) : std::abs(i - 2.0));
+  }
+  p.x.segment<3>(3 * 31) = at;
+  return p;
+}
+
+const SelfContact::Pair* pair_of(const SelfContact& c, int vertex) {
+  for (const SelfContact::Pair& pr : c.pairs())
+    if (pr.vertex == vertex) return &pr;
+  return nullptr;
+}
+
+// A vertex that has sunk in under a valley of the other surface, where its nearest point is on
+// the valley's floor (an edge, or the bowl's corner), is inside: its distance is negative and the
+// force pushes it out. The plain distance there (before) was positive, pushing it deeper, and
+// jumped from -depth to +depth where the nearest point passed from a face onto the edge.
+TEST(SelfContact, AVertexSunkUnderAValleyIsInsideAndPushedOut) {
+  for (const bool bowl : {false, true}) {
+    const Plates p = valley(bowl, {2.0, bowl ? 2.0 : 1.6, -0.02});
+    SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
+    c.detect(p.x);
+    ASSERT_EQ(c.pairs().size(), 1u);
+    const SelfContact::Pair* pr = pair_of(c, 31);
+    ASSERT_NE(pr, nullptr) << (bowl ? "bowl" : "valley");
+    EXPECT_LT(pr->weights.minCoeff(), 1e-9) << "the nearest point is on an edge or a corner";
+    EXPECT_NEAR(pr->distance, -0.02, 1e-12) << (bowl ? "bowl" : "valley");
+    EXPECT_NEAR(pr->normal.z(), 1.0, 1e-12);
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(p.x.size()), v = f;
+    c.add_forces(v, &f);
+    EXPECT_GT(f[3 * 31 + 2], 0.0) << "pushed out, up";
+    // The force is minus the energy's gradient there too (the pairs re-detected on each side).
+    const double h = 1e-7;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::VectorXd xp = p.x, xm = p.x, g = f;
+      xp[3 * 31 + k] += h;
+      xm[3 * 31 + k] -= h;
+      SelfContact cp(p.surface, options(), kStiffness, kMaxDepth),
+          cm(p.surface, options(), kStiffness, kMaxDepth);
+      cp.detect(xp);
+      cm.detect(xm);
+      const double fd = -(cp.add_forces(v, &g) - cm.add_forces(v, &g)) / (2 * h);
+      EXPECT_NEAR(fd, f[3 * 31 + k], 1e-6 * std::max(1.0, std::abs(f[3 * 31 + k]))) << k;
+    }
+  }
+  // Swept across the valley at a fixed height below its floor: inside all the way, and the
+  // distance as continuous as a distance is (it changes by no more than the vertex moves).
+  double last = 0.0;
+  for (int k = 0; k <= 200; ++k) {
+    const double xk = 1.5 + k * 0.005;
+    const Plates p = valley(false, {xk, 1.6, -0.02});
+    SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
+    c.detect(p.x);
+    const SelfContact::Pair* pr = pair_of(c, 31);
+    ASSERT_NE(pr, nullptr) << xk;
+    EXPECT_LT(pr->distance, 0.0) << "x = " << xk;
+    if (k > 0) {
+      EXPECT_LE(std::abs(pr->distance - last), 0.005 * (1 + 1e-9)) << "x = " << xk;
+    }
+    last = pr->distance;
+  }
+  // Outside, over the floor: positive, with the faces' own signs.
+  {
+    const Plates p = valley(false, {2.0, 1.6, 0.1});
+    SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
+    c.detect(p.x);
+    ASSERT_NE(pair_of(c, 31), nullptr);
+    EXPECT_NEAR(pair_of(c, 31)->distance, 0.1 / std::sqrt(1.0 + 0.04), 1e-12);
+  }
+  // Beyond the surface's boundary (a plate's edge: the free edge of a leaflet) the outside
+  // wraps around it: positive whatever the side.
+  for (const double z : {-0.1, 0.1}) {
+    const Plates p = valley(false, {4.3, 1.6, 0.4 + z});
+    SelfContact c(p.surface, options(), kStiffness, kMaxDepth);
+    c.detect(p.x);
+    ASSERT_NE(pair_of(c, 31), nullptr);
+    EXPECT_NEAR(pair_of(c, 31)->distance, std::hypot(0.3, z), 1e-12) << z;
+  }
+}
+
 // A strip of the unrolled plane (u along it, v across; spacing 0.5 mm) folded in 3D into a U:
 // the arms face each other `gap` mm apart, with random bumps of up to 0.08 mm. Vertices of one arm
 // pair with triangles of the other where they are more than the exclusion distance apart along the

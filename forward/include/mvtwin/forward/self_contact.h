@@ -1,6 +1,7 @@
 #pragma once
 #include <array>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -65,6 +66,14 @@ struct SelfContactOptions {
 /// jump for the one linearization per step). Friction is lagged Coulomb friction regularized
 /// below `friction_slip_mm_per_s`.
 ///
+/// The distance d of a vertex is to the nearest triangle of each group (nearest by the unsigned
+/// distance), signed so that it is negative inside the leaflet: over the triangle's face by the
+/// face's outward side; where the nearest point is on an edge or a corner, by that feature's
+/// pseudo-normal (the two faces' outward normals summed, or the faces around the corner
+/// weighted by their angles there: Baerentzen and Aanaes 2005), so that d is continuous where
+/// the nearest point passes from a face over an edge to the next face, inside as outside. On
+/// the surface's boundary (the free edge, the commissures) d beyond an edge is positive.
+///
 /// Tangent: the Gauss-Newton stiffness k(d) J^T n n^T J of each pair (J = [I, -w0, -w1, -w2]
 /// maps the four nodes' motion to the vertex's motion relative to its closest point) plus the
 /// friction damping. multiply() applies it with all vertex-triangle couplings (for an iterative
@@ -79,12 +88,17 @@ struct SelfContactOptions {
 class SelfContact {
  public:
   struct Pair {
-    int vertex;                       ///< node index
-    std::array<int, 3> tri;           ///< node indices
-    Eigen::Vector3d weights;          ///< barycentric weights of the closest point
-    Eigen::Vector3d normal;           ///< direction that separates them (on the vertex's side)
-    double distance;                  ///< signed: negative once the vertex is through the triangle
-    signed char outward = 1;          ///< the triangle's Surface::triangle_outward
+    int vertex;               ///< node index
+    std::array<int, 3> tri;   ///< node indices
+    Eigen::Vector3d weights;  ///< barycentric weights of the closest point
+    Eigen::Vector3d normal;   ///< direction that separates them (on the vertex's side)
+    double distance;          ///< signed: negative once the vertex is through the triangle
+    signed char outward = 1;  ///< the triangle's Surface::triangle_outward
+    /// Where the closest point is on an edge or a corner of the triangle: -1 when the vertex
+    /// lies on the solid's inner side of that feature (its pseudo-normal: the adjacent faces'
+    /// outward normals, summed for an edge and angle-weighted for a corner), else +1. The
+    /// distance is then side x |vertex - closest point|. Unused over the face.
+    signed char side = 1;
     bool area_from_triangle = false;  ///< `area` is the triangle's (not the vertex's)
     double area;                      ///< surface area the vertex stands for, mm^2
     // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
@@ -175,6 +189,12 @@ class SelfContact {
   /// Whether surface vertex i is within the exclusion distance (in the unrolled plane) of a
   /// corner of triangle t: such pairs are neighbours on the leaflet, not contacts.
   bool excluded(int i, int t) const;
+  /// -1 when p, whose closest point on triangle t (barycentric w) lies on an edge or a corner,
+  /// is on the inner side of that feature's pseudo-normal at x; +1 otherwise, and on the
+  /// surface's boundary (an edge of one triangle, a corner on such an edge), beyond which lies
+  /// the outside.
+  signed char feature_side(const Eigen::VectorXd& x, int t, const Eigen::Vector3d& w,
+                           const Eigen::Vector3d& p_minus_q) const;
 
   SelfContactOptions opt_;
   double stiffness_per_area_ = 0.0, max_depth_mm_ = 0.0;
@@ -188,6 +208,12 @@ class SelfContact {
   std::vector<Eigen::Vector2d> triangle_centre_;
   std::vector<double> triangle_inside2_, triangle_outside2_;
   std::vector<Eigen::Vector2d> vertex_uv_;  // each surface vertex in the unrolled plane
+  // The surface's connectivity: per triangle and edge k (corners k, k + 1), the triangle across
+  // it (-1 on the boundary); per node, the triangles around it, and whether it lies on the
+  // boundary (feature_side()).
+  std::vector<std::array<int, 3>> edge_neighbour_;
+  std::unordered_map<int, std::vector<int>> node_triangles_;
+  std::unordered_map<int, bool> node_on_boundary_;
   // The full search takes the triangles in consecutive groups (valve_surface's quadratic faces
   // are four consecutive triangles). Per group, in the unrolled plane: a centre and the squared
   // distance from it below which a vertex is excluded from every triangle of the group.
