@@ -814,10 +814,11 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
         break;
       }
     }
-    if (!converged && static_stalled(std::span(counters_.static_history).subspan(history_start))) {
+    if (!converged && static_stalled(std::span(counters_.static_history).subspan(history_start),
+                                     options_.static_stall_iterations)) {
       ++it;
-      why = "stalled: the residual has not halved in " + std::to_string(kStaticStallIterations) +
-            " iterations";
+      why = "stalled: the residual has not halved in " +
+            std::to_string(options_.static_stall_iterations) + " iterations";
       break;
     }
   }
@@ -841,9 +842,9 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   return {};
 }
 
-bool ClosureIntegrator::static_stalled(std::span<const double> history) {
+bool ClosureIntegrator::static_stalled(std::span<const double> history, int window) {
   const size_t n = history.size();
-  const size_t w = static_cast<size_t>(kStaticStallIterations);
+  const size_t w = static_cast<size_t>(std::max(window, 1));
   if (n <= w) return false;
   const auto lowest = [&](size_t end) {
     return *std::min_element(history.begin(), history.begin() + static_cast<std::ptrdiff_t>(end));
