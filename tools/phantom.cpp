@@ -14,8 +14,8 @@ namespace mvtwin::tools {
 namespace {
 
 /// The closing frames of --quick: a coarse model, for trying the commands in seconds.
-const std::vector<std::string> kQuickClosure = {"ures=20", "vres=10",           "layers=1",
-                                                "dt=0.01", "pcg_tolerance=0.1", "static_rest=off"};
+const std::vector<std::string> kQuickClosure = {"ures=20", "vres=10", "layers=1", "dt=0.01",
+                                                "pcg_tolerance=0.1"};
 
 }  // namespace
 

@@ -814,11 +814,10 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
         break;
       }
     }
-    if (!converged && static_stalled(std::span(counters_.static_history).subspan(history_start),
-                                     options_.static_stall_iterations)) {
+    if (!converged && static_stalled(std::span(counters_.static_history).subspan(history_start))) {
       ++it;
-      why = "stalled: the residual has not halved in " +
-            std::to_string(options_.static_stall_iterations) + " iterations";
+      why = "stalled: the residual has not halved in " + std::to_string(kStaticStallIterations) +
+            " iterations";
       break;
     }
   }
@@ -842,9 +841,9 @@ StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   return {};
 }
 
-bool ClosureIntegrator::static_stalled(std::span<const double> history, int window) {
+bool ClosureIntegrator::static_stalled(std::span<const double> history) {
   const size_t n = history.size();
-  const size_t w = static_cast<size_t>(std::max(window, 1));
+  const size_t w = static_cast<size_t>(kStaticStallIterations);
   if (n <= w) return false;
   const auto lowest = [&](size_t end) {
     return *std::min_element(history.begin(), history.begin() + static_cast<std::ptrdiff_t>(end));

@@ -110,8 +110,6 @@ const std::map<std::string, Field>& fields() {
             [](ClosureOptions& o) -> int& { return o.settle_newton_iterations; });
     integer("static_max_iterations",
             [](ClosureOptions& o) -> int& { return o.static_max_iterations; });
-    integer("static_stall_iterations",
-            [](ClosureOptions& o) -> int& { return o.static_stall_iterations; });
     integer("pcg_max_iterations",
             [](ClosureOptions& o) -> int& { return o.solver.pcg_max_iterations; });
     integer("refactor_iterations",

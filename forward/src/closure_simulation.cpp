@@ -86,8 +86,6 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("static_start_mm must be in [0, 10] mm (0: Newton from the closure's end)");
   if (static_max_iterations < 1 || static_max_iterations > 1000)
     return bad("static_max_iterations must be in 1..1000");
-  if (static_stall_iterations < 1 || static_stall_iterations > 1000)
-    return bad("static_stall_iterations must be in 1..1000");
   if (!(newton_tolerance > 0)) return bad("newton_tolerance must be positive");
   if (orifice_refine < 0 || orifice_refine > 8) return bad("orifice_refine must be in 0..8");
   if (max_step_halvings < 0 || max_step_halvings > 10)

@@ -19,14 +19,6 @@ ClosureOptions VirtualClosureOptions::fine_default() {
   o.dt = 1e-3;                    // the smallest step, where the leaflets meet
   o.step_error_mm = 0.05;         // half the calibration model's error per step
   o.solver.pcg_tolerance = 1e-3;  // a tenth of the calibration model's linear-solve tolerance
-  // At rest by Newton's method from the closure's end, settling where it fails: settling crept
-  // for its whole 5 s (still 1 mm per step) on a functional-MR valve whose rest Newton reaches
-  // in 46 iterations, 18 of them without halving its lowest residual (docs/virtual-patients.md,
-  // "At rest by a static solve").
-  o.static_rest = true;
-  o.static_start_mm = 0.0;
-  o.static_max_iterations = 60;
-  o.static_stall_iterations = 30;
   return o;
 }
 

@@ -97,11 +97,10 @@ class ClosureIntegrator {
   /// step |r| may rise some (the stiff in-plane dofs); on bench closure's virtual patient 3 the
   /// slope's test took a trial that raised it 128-fold, and Newton never recovered.
   static constexpr double kStaticResidualGrowth = 10.0;
-  /// Newton has stalled when its lowest residual so far has not halved over the last `window`
-  /// iterations (history: |r| at the start and after each iteration; solve_static passes
-  /// ClosureOptions::static_stall_iterations, by default kStaticStallIterations).
+  /// Newton has stalled when its lowest residual so far has not halved over the last
+  /// kStaticStallIterations iterations (history: |r| at the start and after each iteration).
   static constexpr int kStaticStallIterations = 8;
-  static bool static_stalled(std::span<const double> history, int window = kStaticStallIterations);
+  static bool static_stalled(std::span<const double> history);
   /// Forces (N, all dofs) of the static problem at positions x and time tau: minus the elastic
   /// gradient, chordae and clips, contact without friction and the pressure (whose part alone
   /// goes to *pressure when not null); keeps each term's linearization for the static tangent.

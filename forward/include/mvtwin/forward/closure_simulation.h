@@ -69,12 +69,6 @@ struct ClosureOptions {
   /// pressure load's (2-norm over the same nodes), or by static_step_mm.
   double static_tolerance = 1e-6;
   int static_max_iterations = 40;  ///< Newton iterations before the static solve gives up
-  /// Newton has stalled, and is given up, when its lowest residual has not halved over this many
-  /// iterations (ClosureIntegrator::static_stalled). 8 gives up the paper's grid's hover at a
-  /// facet crease soon; Newton that travels far to rest (the observation model from the
-  /// closure's end: 30, VirtualClosureOptions::fine_default) may go 18 iterations without
-  /// halving it before it converges.
-  int static_stall_iterations = 8;
   /// Also converged after a step along a Newton correction that moves no free node by more
   /// than this (mm), the residual below 1 % of the load (ClosureIntegrator::solve_static).
   double static_step_mm = 1e-3;
