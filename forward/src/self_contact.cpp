@@ -401,6 +401,10 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
                             b = x.segment<3>(3 * s_.triangles[t][1]),
                             c = x.segment<3>(3 * s_.triangles[t][2]);
       const Eigen::Vector3d q = closest_point_on_triangle(p, a, b, c);
+      const double len = (p - q).norm();
+      // Only a nearer triangle than the best so far can answer: the rest (most candidates) is
+      // decided by the unsigned distance alone, before the sign is worked out.
+      if (!(len < best_len[g])) continue;
       const Eigen::Vector3d w = barycentric(q, a, b, c);
       // Over the face: the distance signed by the face's outward side (negative inside the
       // leaflet), so that a vertex pushed in is pushed back out; deeper than max_depth the
@@ -413,7 +417,6 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
       Eigen::Vector3d n;
       double d;
       signed char side = 1;
-      const double len = (p - q).norm();
       if (w.minCoeff() > 1e-9) {
         n = s_.triangle_outward[t] * (b - a).cross(c - a).normalized();
         d = n.dot(p - q);
@@ -425,17 +428,15 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
                 : Eigen::Vector3d(s_.triangle_outward[t] * (b - a).cross(c - a).normalized());
       }
       if (d < -max_depth_mm_) continue;
-      if (len < best_len[g]) {
-        best_len[g] = len;
-        best[g].side = side;
-        best[g].distance = d;
-        best[g].vertex = s_.vertices[i];
-        best[g].tri = s_.triangles[t];
-        best[g].weights = w;
-        best[g].normal = n;
-        best[g].outward = s_.triangle_outward[t];
-        best[g].area = 0.5 * (b - a).cross(c - a).norm();
-      }
+      best_len[g] = len;
+      best[g].side = side;
+      best[g].distance = d;
+      best[g].vertex = s_.vertices[i];
+      best[g].tri = s_.triangles[t];
+      best[g].weights = w;
+      best[g].normal = n;
+      best[g].outward = s_.triangle_outward[t];
+      best[g].area = 0.5 * (b - a).cross(c - a).norm();
     }
     for (Pair& b : best) {
       *min_distance = std::min(*min_distance, b.distance);
