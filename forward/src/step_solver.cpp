@@ -429,10 +429,17 @@ bool galerkin(const std::vector<const Eigen::VectorXd*>& v,
 
 }  // namespace
 
+namespace {
+constexpr int kMaxReuseBackoff = 8;  // solves factorized at once after repeated failed reuses
+}  // namespace
+
 struct StepSolver::Impl {
   std::unique_ptr<Factor> factor;
   bool have_factor = false;
   bool stale = false;
+  // After a reused factor failed (iterate()): how many solves factorize at once before a reuse
+  // is tried again, doubling with each failure up to kMaxReuseBackoff, 0 once a reuse serves.
+  int reuse_backoff = 0, skip_reuse = 0;
 };
 
 bool StepSolverOptions::is_valid(std::string* error) const {
@@ -691,10 +698,12 @@ bool StepSolver::iterate(const System& A, const Iteration& run, bool* fresh, Eig
   Eigen::VectorXd xk;
   int iterations = 0;
   bool converged = run(&xk, &iterations);
+  bool fell_back = false;
   if (!converged && !*fresh) {
     ++stats_.pcg_fallbacks;
     if (!factorize(A, why)) return false;
     *fresh = true;
+    fell_back = true;
     converged = run(&xk, &iterations);
   }
   if (!xk.allFinite()) {
@@ -709,6 +718,23 @@ bool StepSolver::iterate(const System& A, const Iteration& run, bool* fresh, Eig
   } else if (opt_.kind == LinearSolver::kReusedFactorPcg && !*fresh &&
              iterations >= opt_.refactor_iterations) {
     impl_->stale = true;
+  }
+  // A factor that could not serve this system (PCG ran to its cap and fell back to a new
+  // factorization) will not serve the next ones either while the matrix changes that fast
+  // (settling's long steps, where every other solve failed first): the next 1, 2, 4, ... (at
+  // most kMaxReuseBackoff) solves factorize at once; a reuse that serves resets it.
+  if (opt_.kind == LinearSolver::kReusedFactorPcg) {
+    Impl& im = *impl_;
+    if (fell_back) {
+      im.reuse_backoff = std::clamp(2 * im.reuse_backoff, 1, kMaxReuseBackoff);
+      im.skip_reuse = im.reuse_backoff;
+    } else if (!*fresh) {
+      im.reuse_backoff = 0;
+    }
+    if (im.skip_reuse > 0) {
+      --im.skip_reuse;
+      im.stale = true;
+    }
   }
   *x = xk;
   return true;
