@@ -215,7 +215,8 @@ SelfContact::SelfContact(Surface surface, const SelfContactOptions& o, double st
         edge_neighbour_[sides[0].first][sides[0].second] = sides[1].first;
         edge_neighbour_[sides[1].first][sides[1].second] = sides[0].first;
       } else {
-        node_on_boundary_[e.first] = node_on_boundary_[e.second] = true;
+        node_on_boundary_.insert(e.first);
+        node_on_boundary_.insert(e.second);
       }
     }
   }
@@ -370,7 +371,7 @@ signed char SelfContact::feature_side(const Eigen::VectorXd& x, int t, const Eig
     pseudo = outward_normal(t) + outward_normal(across);
   } else {
     const int node = s_.triangles[t][corner];
-    if (const auto b = node_on_boundary_.find(node); b != node_on_boundary_.end()) return 1;
+    if (node_on_boundary_.contains(node)) return 1;
     const Eigen::Vector3d v = x.segment<3>(3 * node);
     for (int tri : node_triangles_.at(node)) {
       const auto& T = s_.triangles[tri];
@@ -416,20 +417,18 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
       // for the face over it.
       Eigen::Vector3d n;
       double d;
-      signed char side = 1;
       if (w.minCoeff() > 1e-9) {
         n = s_.triangle_outward[t] * (b - a).cross(c - a).normalized();
         d = n.dot(p - q);
       } else {
-        side = feature_side(x, t, w, p - q);
-        d = side * len;
+        // side x len keeps the sign at len = 0 (-0.0), from which linearize_exact reads it.
+        d = feature_side(x, t, w, p - q) * len;
         n = len > 1e-12
                 ? Eigen::Vector3d((p - q) / d)
                 : Eigen::Vector3d(s_.triangle_outward[t] * (b - a).cross(c - a).normalized());
       }
       if (d < -max_depth_mm_) continue;
       best_len[g] = len;
-      best[g].side = side;
       best[g].distance = d;
       best[g].vertex = s_.vertices[i];
       best[g].tri = s_.triangles[t];
@@ -681,8 +680,8 @@ void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scal
 namespace {
 // grad d of a vertex p over triangle (a, b, c) (12 entries: p, a, b, c), with the distance's
 // definition of closest_pairs(): signed by the face's outward side over the face, beyond an
-// edge or a corner the plain distance times the pair's side (its sign does not change under the
-// difference's 1e-6 mm).
+// edge or a corner the plain distance times `side`, the sign the pair's distance has (it does not
+// change under the difference's 1e-6 mm).
 Eigen::Matrix<double, 12, 1> distance_gradient(const Eigen::Matrix<double, 12, 1>& X,
                                                signed char outward, signed char side) {
   const Eigen::Vector3d p = X.segment<3>(0), a = X.segment<3>(3), b = X.segment<3>(6),
@@ -714,15 +713,16 @@ void SelfContact::linearize_exact(const Eigen::VectorXd& x) {
     const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
     Eigen::Matrix<double, 12, 1> X;
     for (int a = 0; a < 4; ++a) X.segment<3>(3 * a) = x.segment<3>(3 * nodes[a]);
-    const Eigen::Matrix<double, 12, 1> g = distance_gradient(X, pr.outward, pr.side);
+    const signed char side = std::signbit(pr.distance) ? -1 : 1;
+    const Eigen::Matrix<double, 12, 1> g = distance_gradient(X, pr.outward, side);
     Eigen::Matrix<double, 12, 12> hess;
     for (int j = 0; j < 12; ++j) {
       Eigen::Matrix<double, 12, 1> Xp = X, Xm = X;
       Xp[j] += eps;
       Xm[j] -= eps;
-      hess.col(j) = (distance_gradient(Xp, pr.outward, pr.side) -
-                     distance_gradient(Xm, pr.outward, pr.side)) /
-                    (2 * eps);
+      hess.col(j) =
+          (distance_gradient(Xp, pr.outward, side) - distance_gradient(Xm, pr.outward, side)) /
+          (2 * eps);
     }
     // f = F(d) grad d, dF/dd = -stiffness: K = -df/dx = stiffness g g^T - F hess d.
     K = pr.stiffness * g * g.transpose() - pr.force * 0.5 * (hess + hess.transpose());

@@ -427,10 +427,8 @@ bool galerkin(const std::vector<const Eigen::VectorXd*>& v,
   return true;
 }
 
-}  // namespace
-
-namespace {
 constexpr int kMaxReuseBackoff = 8;  // solves factorized at once after repeated failed reuses
+
 }  // namespace
 
 struct StepSolver::Impl {

@@ -2,6 +2,7 @@
 #include <array>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include <Eigen/Core>
@@ -92,13 +93,10 @@ class SelfContact {
     std::array<int, 3> tri;   ///< node indices
     Eigen::Vector3d weights;  ///< barycentric weights of the closest point
     Eigen::Vector3d normal;   ///< direction that separates them (on the vertex's side)
-    double distance;          ///< signed: negative once the vertex is through the triangle
-    signed char outward = 1;  ///< the triangle's Surface::triangle_outward
-    /// Where the closest point is on an edge or a corner of the triangle: -1 when the vertex
-    /// lies on the solid's inner side of that feature (its pseudo-normal: the adjacent faces'
-    /// outward normals, summed for an edge and angle-weighted for a corner), else +1. The
-    /// distance is then side x |vertex - closest point|. Unused over the face.
-    signed char side = 1;
+    /// Signed: negative once the vertex is through the triangle (over its face) or on the inner
+    /// side of the edge's or corner's pseudo-normal; -0.0 on such a feature itself.
+    double distance;
+    signed char outward = 1;          ///< the triangle's Surface::triangle_outward
     bool area_from_triangle = false;  ///< `area` is the triangle's (not the vertex's)
     double area;                      ///< surface area the vertex stands for, mm^2
     // Set by add_forces(): normal force (N) and stiffness (N/mm), friction coefficient
@@ -213,7 +211,7 @@ class SelfContact {
   // boundary (feature_side()).
   std::vector<std::array<int, 3>> edge_neighbour_;
   std::unordered_map<int, std::vector<int>> node_triangles_;
-  std::unordered_map<int, bool> node_on_boundary_;
+  std::unordered_set<int> node_on_boundary_;
   // The full search takes the triangles in consecutive groups (valve_surface's quadratic faces
   // are four consecutive triangles). Per group, in the unrolled plane: a centre and the squared
   // distance from it below which a vertex is excluded from every triangle of the group.
