@@ -195,6 +195,13 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const bool quadratic = mesh.order == TetOrder::kQuadratic;
   const int n = mesh.num_nodes();
   const double T = scene.duration();
+  // mvtwin's stiffness-proportional damping (C = alpha_K K) as a Maxwell branch of the leaflets'
+  // material (FEBio's "viscoelastic": g1 = 1, t1 = alpha_K, so that at a steady strain rate it
+  // adds the stress alpha_K K de/dt as the damping does), and the load held at its end for
+  // kFebioRelaxTimes x t1, long enough for that branch to relax (e^-10): the end state is the
+  // scene's rest, as mvtwin's settled closure.
+  const double relax_s = opt.rayleigh_stiffness;
+  const double hold_s = relax_s > 0 ? kFebioRelaxTimes * relax_s : 0.0;
   // FEBio ids: leaflet nodes in reverse Cuthill-McKee order, then the papillary tips.
   const std::vector<int> order = febio_node_order(mesh);
   std::vector<int> id_of(static_cast<size_t>(n));
@@ -221,9 +228,14 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   os << "<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>\n<!--\n"
      << comment_safe(comment) << "\n"
      << "Units: mm, s, N, MPa, t (tonne). Written by mvtwin write_febio (docs/febio-export.md).\n"
-     << "Not expressible in FEBio and therefore not in this file: Rayleigh damping (alpha_M = "
-     << num(opt.rayleigh_mass) << " 1/s, alpha_K = " << num(opt.rayleigh_stiffness)
-     << " s; the analysis is quasi-static instead), self-contact within one leaflet, the\n"
+     << "Not expressible in FEBio and therefore not in this file: the mass-proportional Rayleigh\n"
+     << "damping (alpha_M = " << num(opt.rayleigh_mass)
+     << " 1/s; the analysis is quasi-static), the stiffness-proportional one (alpha_K = "
+     << num(opt.rayleigh_stiffness)
+     << " s)\nexcept as a Maxwell branch of the leaflets' material (viscoelastic, g1 = 1, t1 = "
+        "alpha_K) with\nthe load held "
+     << num(hold_s)
+     << " s after the closure for it to relax, self-contact within one leaflet, the\n"
      << "contact wall below the minimum distance (wall factor " << num(opt.contact.wall_factor)
      << "; FEBio's potential has its own wall, kc / r^p, below R_in), friction ("
      << num(opt.contact.friction) << " in mvtwin, regularized below a slip of "
@@ -250,8 +262,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "R0_min = 4^2 mm^2.\n-->\n";
   os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
   os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
-     << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
-     << num(opt.dt) << "</step_size>\n"
+     << static_cast<int>(std::ceil((T + hold_s) / opt.dt - 1e-9))
+     << "</time_steps>\n    <step_size>" << num(opt.dt) << "</step_size>\n"
      << "    <time_stepper type=\"default\">\n      <max_retries>10</max_retries>\n"
      << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
      << "</dtmin>\n      <dtmax>" << num(opt.dt)
@@ -269,13 +281,26 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   // Materials.
   const char* names[2] = {"anterior_leaflet", "posterior_leaflet"};
   os << "  <Material>\n";
+  // A material, wrapped in the Maxwell branch when there is damping to stand for.
+  auto material = [&](int id, const char* name, const char* type, const std::string& params) {
+    os << "    <material id=\"" << id << "\" name=\"" << name << "\" type=\""
+       << (relax_s > 0 ? "viscoelastic" : type) << "\">\n      <density>" << num(opt.density)
+       << "</density>\n";
+    if (relax_s > 0) {
+      os << "      <g1>1</g1>\n      <t1>" << num(relax_s) << "</t1>\n      <elastic type=\""
+         << type << "\">\n"
+         << params << "      </elastic>\n";
+    } else {
+      os << params;
+    }
+    os << "    </material>\n";
+  };
   for (int k = 0; k < 2; ++k) {
     const TransverselyIsotropic& t = scene.leaflet_material[k];
-    os << "    <material id=\"" << k + 1 << "\" name=\"" << names[k]
-       << "\" type=\"neo-Hookean transiso\">\n      <density>" << num(opt.density)
-       << "</density>\n      <Ep>" << num(t.e_cross) << "</Ep>\n      <Ez>" << num(t.e_fibre)
-       << "</Ez>\n      <vz>" << num(t.nu_fibre) << "</vz>\n      <vp>" << num(t.nu_cross)
-       << "</vp>\n      <gz>" << num(t.g_fibre) << "</gz>\n    </material>\n";
+    material(k + 1, names[k], "neo-Hookean transiso",
+             "      <Ep>" + num(t.e_cross) + "</Ep>\n      <Ez>" + num(t.e_fibre) +
+                 "</Ez>\n      <vz>" + num(t.nu_fibre) + "</vz>\n      <vp>" + num(t.nu_cross) +
+                 "</vp>\n      <gz>" + num(t.g_fibre) + "</gz>\n");
   }
   // Elements the inversion guard held: neo-Hookean, domains of their own (ids 3 and 4).
   std::vector<char> is_guarded(static_cast<size_t>(mesh.num_elements()), 0);
@@ -284,9 +309,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const char* guarded_names[2] = {"anterior_guarded", "posterior_guarded"};
   for (int k = 0; k < 2; ++k) {
     const TransverselyIsotropic& t = scene.leaflet_material[k];
-    os << "    <material id=\"" << k + 3 << "\" name=\"" << guarded_names[k]
-       << "\" type=\"neo-Hookean\">\n      <density>" << num(opt.density) << "</density>\n      <E>"
-       << num(t.e_cross) << "</E>\n      <v>" << num(t.nu_cross) << "</v>\n    </material>\n";
+    material(k + 3, guarded_names[k], "neo-Hookean",
+             "      <E>" + num(t.e_cross) + "</E>\n      <v>" + num(t.nu_cross) + "</v>\n");
   }
   os << "  </Material>\n";
 

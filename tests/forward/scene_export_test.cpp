@@ -229,6 +229,26 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "sliding-elastic"), 0);
   EXPECT_EQ(count(feb, "<ElementData type=\"mat_axis\""), 2);
   EXPECT_EQ(count(feb, "type=\"neo-Hookean\""), 2);  // one material per leaflet
+  // mvtwin's stiffness-proportional damping as a Maxwell branch of all four materials, and the
+  // load held for ten of its relaxation times after the closure.
+  ASSERT_GT(o.rayleigh_stiffness, 0.0);
+  EXPECT_EQ(count(feb, "type=\"viscoelastic\""), 4);
+  EXPECT_EQ(count(feb, "<g1>1</g1>"), 4);
+  EXPECT_EQ(value_of("t1"), o.rayleigh_stiffness);
+  EXPECT_EQ(value_of("time_steps"),
+            std::ceil((scene.duration() + kFebioRelaxTimes * o.rayleigh_stiffness) / o.dt - 1e-9));
+  {
+    ClosureOptions undamped = o;
+    undamped.rayleigh_stiffness = 0.0;
+    const fs::path file = dir / "undamped.feb";
+    write_febio(file, scene, undamped, "undamped", {});
+    const std::string plain = slurp(file);
+    EXPECT_EQ(count(plain, "type=\"viscoelastic\""), 0);
+    EXPECT_EQ(count(plain, "type=\"neo-Hookean transiso\""), 2);
+    const size_t at = plain.find("<time_steps>");
+    ASSERT_NE(at, std::string::npos);
+    EXPECT_EQ(std::stod(plain.substr(at + 12, 24)), std::ceil(scene.duration() / o.dt - 1e-9));
+  }
   const auto elements_in = [&feb](const std::string& domain) {
     const size_t at = feb.find("<Elements type=\"tet10\" name=\"" + domain + "\">");
     if (at == std::string::npos) return 0;

@@ -16,7 +16,12 @@ namespace mvtwin::forward {
 ///     isotropic neo-Hookean: Ez = E_fibre, Ep = E_cross, vz = nu12, vp = nu23, gz = G12),
 ///     which linearizes to mvtwin's stiffness and, unlike St Venant-Kirchhoff ("orthotropic
 ///     elastic"), neither softens in compression nor lets an element collapse, and a
-///     per-element material axis (a = the fibre, the material's symmetry axis);
+///     per-element material axis (a = the fibre, the material's symmetry axis); with Rayleigh
+///     damping, wrapped in a Maxwell branch ("viscoelastic", g1 = 1, t1 = alpha_K) that stands
+///     for mvtwin's stiffness-proportional damping, and the load held kFebioRelaxTimes x
+///     alpha_K after the closure for it to relax (without it FEBio's quasi-static path met the
+///     slack, unstable membranes of functional MR early in the closure and stopped there:
+///     docs/febio-export.md);
 ///   - each chorda as "nonlinear spring"s from every node of its insertion cross-section to a
 ///     node at its papillary tip (febio_chorda_springs), with the continuous bilinear,
 ///     tension-only law as a force-elongation curve that accounts for the rest length;
@@ -31,7 +36,8 @@ namespace mvtwin::forward {
 ///   - nodes numbered for a small profile (febio_node_order; the node set `mvtwin_order` maps
 ///     them back), an automatic time stepper with retries.
 /// Units are mvtwin's (mm, s, N, MPa, t). What FEBio cannot express is said in the file's
-/// header comment: Rayleigh damping (the analysis is quasi-static), self-contact within one
+/// header comment: the mass-proportional damping (the analysis is quasi-static), self-contact
+/// within one
 /// leaflet, the contact wall law and the inversion guard. `comment` (provenance) is written at
 /// the top. Written atomically; throws mvtwin::Error if it cannot be written.
 /// The force-elongation curve of a tension-only spring for FEBio's "nonlinear spring" (measure
@@ -64,6 +70,10 @@ struct FebioContactPotential {
   double r0_min = 0;
 };
 inline constexpr double kFebioContactRangeFactor = 2.0;
+/// The load is held after the closure for this many of the leaflets' Maxwell relaxation times
+/// (write_febio: mvtwin's stiffness-proportional damping as a viscoelastic branch), so that the
+/// branch has relaxed to e^-10 of its stress and FEBio's end state is the scene's rest.
+inline constexpr double kFebioRelaxTimes = 10.0;
 FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
                                               double stiffness_per_area, double peak_pressure_mpa);
 
