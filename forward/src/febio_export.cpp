@@ -197,9 +197,10 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   const double T = scene.duration();
   // mvtwin's stiffness-proportional damping (C = alpha_K K) as a Maxwell branch of the leaflets'
   // material (FEBio's "viscoelastic": g1 = 1, t1 = alpha_K, so that at a steady strain rate it
-  // adds the stress alpha_K K de/dt as the damping does), and the load held at its end for
-  // kFebioRelaxTimes x t1, long enough for that branch to relax (e^-10): the end state is the
-  // scene's rest, as mvtwin's settled closure.
+  // adds the stress alpha_K K de/dt as the damping does), and after the closure a second
+  // analysis step with the loads held (kFebioRelaxTimes x t1 in kFebioRelaxSteps steps) in which
+  // the branch relaxes and the soft modes creep to rest: the end state is the scene's rest, as
+  // mvtwin's settled closure.
   const double relax_s = opt.rayleigh_stiffness;
   const double hold_s = relax_s > 0 ? kFebioRelaxTimes * relax_s : 0.0;
   // FEBio ids: leaflet nodes in reverse Cuthill-McKee order, then the papillary tips.
@@ -235,7 +236,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << " s)\nexcept as a Maxwell branch of the leaflets' material (viscoelastic, g1 = 1, t1 = "
         "alpha_K) with\nthe load held "
      << num(hold_s)
-     << " s after the closure for it to relax, self-contact within one leaflet, the\n"
+     << " s after the closure (step \"relax\") for it to relax, self-contact within one\n"
+        "leaflet, the\n"
      << "contact wall below the minimum distance (wall factor " << num(opt.contact.wall_factor)
      << "; FEBio's potential has its own wall, kc / r^p, below R_in), friction ("
      << num(opt.contact.friction) << " in mvtwin, regularized below a slip of "
@@ -262,8 +264,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "R0_min = 4^2 mm^2.\n-->\n";
   os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
   os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
-     << static_cast<int>(std::ceil((T + hold_s) / opt.dt - 1e-9))
-     << "</time_steps>\n    <step_size>" << num(opt.dt) << "</step_size>\n"
+     << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
+     << num(opt.dt) << "</step_size>\n"
      << "    <time_stepper type=\"default\">\n      <max_retries>10</max_retries>\n"
      << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
      << "</dtmin>\n      <dtmax>" << num(opt.dt)
@@ -544,6 +546,23 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
     os << "    <discrete dmat=\"" << s + 1 << "\" discrete_set=\"" << springs[s].name << "\"/>\n";
   os << "  </Discrete>\n";
 
+  if (hold_s > 0) {
+    // The load held (the curves extend constant) while the Maxwell branch relaxes: steps of
+    // hold / kFebioRelaxSteps, halved on failure as in the closure.
+    const double h = hold_s / kFebioRelaxSteps;
+    os << "  <Step>\n    <step name=\"relax\">\n      <Control>\n        "
+          "<analysis>STATIC</analysis>\n"
+       << "        <time_steps>" << kFebioRelaxSteps << "</time_steps>\n        <step_size>"
+       << num(h)
+       << "</step_size>\n        <time_stepper>\n          <max_retries>10</max_retries>\n"
+       << "          <opt_iter>10</opt_iter>\n          <dtmin>" << num(h / 1024.0)
+       << "</dtmin>\n          <dtmax>" << num(h) << "</dtmax>\n"
+       << "          <aggressiveness>1</aggressiveness>\n          <cutback>0.5</cutback>\n"
+       << "        </time_stepper>\n        <solver>\n"
+       << "          <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
+       << "          <optimize_bw>1</optimize_bw>\n        </solver>\n      </Control>\n"
+       << "    </step>\n  </Step>\n";
+  }
   os << "  <LoadData>\n" << lc.str() << "  </LoadData>\n";
   // The node positions in mvtwin's node order at every converged step, as text: the closed
   // valve compares with mvtwin's without a reader for FEBio's binary plot file.

@@ -200,16 +200,18 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "type=\"nonlinear spring\""),
             static_cast<int>(chorda_springs + scene.springs.size()));
   // The automatic time stepper, FEBio's own bandwidth optimization, and the contact potential
-  // with the parameters derived from mvtwin's penalty.
+  // with the parameters derived from mvtwin's penalty. Two analysis steps (the closure, then the
+  // load held while the damping's Maxwell branch relaxes), each with its stepper and solver.
   EXPECT_EQ(count(feb, "<time_stepper type=\"default\">"), 1);
-  EXPECT_EQ(count(feb, "<max_retries>10</max_retries>"), 1);  // 10 halvings: dt / 1024
+  EXPECT_EQ(count(feb, "<time_stepper>"), 1);
+  EXPECT_EQ(count(feb, "<max_retries>10</max_retries>"), 2);  // 10 halvings: dt / 1024
   // Failed steps are retried at half the step: FEBio uses the cutback only with aggressiveness
   // 1 (with 0 it shortens a retried step by dt / 26 each time).
-  EXPECT_EQ(count(feb, "<aggressiveness>1</aggressiveness>"), 1);
-  EXPECT_EQ(count(feb, "<cutback>0.5</cutback>"), 1);
+  EXPECT_EQ(count(feb, "<aggressiveness>1</aggressiveness>"), 2);
+  EXPECT_EQ(count(feb, "<cutback>0.5</cutback>"), 2);
   EXPECT_EQ(count(feb, "type=\"neo-Hookean transiso\""), 2);
   EXPECT_EQ(count(feb, "orthotropic elastic"), 0);
-  EXPECT_EQ(count(feb, "<optimize_bw>1</optimize_bw>"), 1);
+  EXPECT_EQ(count(feb, "<optimize_bw>1</optimize_bw>"), 2);
   // The node positions logged as text in mvtwin's order.
   EXPECT_EQ(count(feb,
                   "<node_data data=\"x;y;z\" delim=\" \" node_set=\"mvtwin_order\" "
@@ -235,8 +237,21 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
   EXPECT_EQ(count(feb, "type=\"viscoelastic\""), 4);
   EXPECT_EQ(count(feb, "<g1>1</g1>"), 4);
   EXPECT_EQ(value_of("t1"), o.rayleigh_stiffness);
-  EXPECT_EQ(value_of("time_steps"),
-            std::ceil((scene.duration() + kFebioRelaxTimes * o.rayleigh_stiffness) / o.dt - 1e-9));
+  EXPECT_EQ(value_of("time_steps"), std::ceil(scene.duration() / o.dt - 1e-9));
+  EXPECT_EQ(count(feb, "<step name=\"relax\">"), 1);
+  {
+    const size_t relax = feb.find("<step name=\"relax\">");
+    ASSERT_NE(relax, std::string::npos);
+    const std::string tail = feb.substr(relax, feb.find("</step>", relax) - relax);
+    EXPECT_NE(tail.find("<time_steps>" + std::to_string(kFebioRelaxSteps) + "</time_steps>"),
+              std::string::npos);
+    const size_t at = tail.find("<step_size>");
+    ASSERT_NE(at, std::string::npos);
+    EXPECT_NEAR(std::stod(tail.substr(at + 11, 24)) * kFebioRelaxSteps,
+                kFebioRelaxTimes * o.rayleigh_stiffness, 1e-12);
+    // FEBio 4 refuses a type attribute on a step's time stepper and solver.
+    EXPECT_EQ(tail.find("type="), std::string::npos);
+  }
   {
     ClosureOptions undamped = o;
     undamped.rayleigh_stiffness = 0.0;
@@ -244,6 +259,7 @@ TEST(FebioExport, SceneFilesAreCompleteAndConsistent) {
     write_febio(file, scene, undamped, "undamped", {});
     const std::string plain = slurp(file);
     EXPECT_EQ(count(plain, "type=\"viscoelastic\""), 0);
+    EXPECT_EQ(count(plain, "<Step>"), 0);
     EXPECT_EQ(count(plain, "type=\"neo-Hookean transiso\""), 2);
     const size_t at = plain.find("<time_steps>");
     ASSERT_NE(at, std::string::npos);

@@ -19,9 +19,9 @@ namespace mvtwin::forward {
 ///     per-element material axis (a = the fibre, the material's symmetry axis); with Rayleigh
 ///     damping, wrapped in a Maxwell branch ("viscoelastic", g1 = 1, t1 = alpha_K) that stands
 ///     for mvtwin's stiffness-proportional damping, and the load held kFebioRelaxTimes x
-///     alpha_K after the closure for it to relax (without it FEBio's quasi-static path met the
-///     slack, unstable membranes of functional MR early in the closure and stopped there:
-///     docs/febio-export.md);
+///     alpha_K after the closure (a second analysis step) for it to relax (without it FEBio's
+///     quasi-static path met the slack, unstable membranes of functional MR early in the closure
+///     and stopped there: docs/febio-export.md);
 ///   - each chorda as "nonlinear spring"s from every node of its insertion cross-section to a
 ///     node at its papillary tip (febio_chorda_springs), with the continuous bilinear,
 ///     tension-only law as a force-elongation curve that accounts for the rest length;
@@ -70,10 +70,14 @@ struct FebioContactPotential {
   double r0_min = 0;
 };
 inline constexpr double kFebioContactRangeFactor = 2.0;
-/// The load is held after the closure for this many of the leaflets' Maxwell relaxation times
-/// (write_febio: mvtwin's stiffness-proportional damping as a viscoelastic branch), so that the
-/// branch has relaxed to e^-10 of its stress and FEBio's end state is the scene's rest.
-inline constexpr double kFebioRelaxTimes = 10.0;
+/// After the closure, the load is held in a second analysis step ("relax") for this many of
+/// the leaflets' Maxwell relaxation times t1 (write_febio: mvtwin's stiffness-proportional
+/// damping as a viscoelastic branch), in kFebioRelaxSteps steps. Long enough for the soft modes
+/// too: under a branch of stiffness K and a mode of stiffness K_soft the mode creeps with the
+/// time constant t1 (1 + K / K_soft), about 1.7 s on virtual patient 1's creeping mode
+/// (docs/forward-status.md), so a hold of 10 t1 (1 s) left it far from rest.
+inline constexpr double kFebioRelaxTimes = 100.0;
+inline constexpr int kFebioRelaxSteps = 40;
 FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
                                               double stiffness_per_area, double peak_pressure_mpa);
 
