@@ -201,8 +201,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   // analysis step with the loads held (kFebioRelaxTimes x t1 in kFebioRelaxSteps steps) in which
   // the branch relaxes and the soft modes creep to rest: the end state is the scene's rest, as
   // mvtwin's settled closure.
-  const double relax_s = opt.rayleigh_stiffness;
-  const double hold_s = relax_s > 0 ? kFebioRelaxTimes * relax_s : 0.0;
+  const double maxwell_t1 = opt.rayleigh_stiffness;
+  const double hold_s = maxwell_t1 > 0 ? kFebioRelaxTimes * maxwell_t1 : 0.0;
   // FEBio ids: leaflet nodes in reverse Cuthill-McKee order, then the papillary tips.
   const std::vector<int> order = febio_node_order(mesh);
   std::vector<int> id_of(static_cast<size_t>(n));
@@ -236,8 +236,8 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << " s)\nexcept as a Maxwell branch of the leaflets' material (viscoelastic, g1 = 1, t1 = "
         "alpha_K) with\nthe load held "
      << num(hold_s)
-     << " s after the closure (step \"relax\") for it to relax, self-contact within one\n"
-        "leaflet, the\n"
+     << " s after the closure (step \"relax\") for it to relax,\n"
+        "self-contact within one leaflet, the\n"
      << "contact wall below the minimum distance (wall factor " << num(opt.contact.wall_factor)
      << "; FEBio's potential has its own wall, kc / r^p, below R_in), friction ("
      << num(opt.contact.friction) << " in mvtwin, regularized below a slip of "
@@ -263,22 +263,32 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
      << "does not rotate). FEBio 4 compares R0_min with the squared reference distance, hence\n"
      << "R0_min = 4^2 mm^2.\n-->\n";
   os << "<febio_spec version=\"4.0\">\n  <Module type=\"solid\"/>\n";
-  os << "  <Control>\n    <analysis>STATIC</analysis>\n    <time_steps>"
-     << static_cast<int>(std::ceil(T / opt.dt - 1e-9)) << "</time_steps>\n    <step_size>"
-     << num(opt.dt) << "</step_size>\n"
-     << "    <time_stepper type=\"default\">\n      <max_retries>10</max_retries>\n"
-     << "      <opt_iter>10</opt_iter>\n      <dtmin>" << num(opt.dt / 1024.0)
-     << "</dtmin>\n      <dtmax>" << num(opt.dt)
-     << "</dtmax>\n"
-     // aggressiveness 1: a failed step is retried at cutback x dt. With 0, FEBio ignores the
-     // cutback and shortens the step by dt / (max_retries + 1) per retry (FETimeStepController::
-     // Retry), so 25 retries never got below dt / 26. Ten halvings reach dtmin = dt / 1024; FEBio
-     // does not stop a retried step at dtmin, and patient 3 spent 25 retries down to 1e-13 s.
-     << "      <aggressiveness>1</aggressiveness>\n      <cutback>0.5</cutback>\n"
-     << "    </time_stepper>\n    <solver type=\"solid\">\n"
-     << "      <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
-     << "      <optimize_bw>1</optimize_bw>\n    </solver>\n"
-     << "  </Control>\n";
+  // An analysis step's Control: `steps` steps of h, each halved up to 10 times on failure.
+  // FEBio 4 wants the stepper and solver typed at the top level and refuses the type inside a
+  // <step>. aggressiveness 1: a failed step is retried at cutback x h. With 0, FEBio ignores the
+  // cutback and shortens the step by h / (max_retries + 1) per retry (FETimeStepController::
+  // Retry), so 25 retries never got below dt / 26. Ten halvings reach dtmin = h / 1024; FEBio
+  // does not stop a retried step at dtmin, and patient 3 spent 25 retries down to 1e-13 s.
+  auto control = [&](const std::string& in, int steps, double h, bool top) {
+    os << in << "<Control>\n"
+       << in << "  <analysis>STATIC</analysis>\n"
+       << in << "  <time_steps>" << steps << "</time_steps>\n"
+       << in << "  <step_size>" << num(h) << "</step_size>\n"
+       << in << "  <time_stepper" << (top ? " type=\"default\"" : "") << ">\n"
+       << in << "    <max_retries>10</max_retries>\n"
+       << in << "    <opt_iter>10</opt_iter>\n"
+       << in << "    <dtmin>" << num(h / 1024.0) << "</dtmin>\n"
+       << in << "    <dtmax>" << num(h) << "</dtmax>\n"
+       << in << "    <aggressiveness>1</aggressiveness>\n"
+       << in << "    <cutback>0.5</cutback>\n"
+       << in << "  </time_stepper>\n"
+       << in << "  <solver" << (top ? " type=\"solid\"" : "") << ">\n"
+       << in << "    <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
+       << in << "    <optimize_bw>1</optimize_bw>\n"
+       << in << "  </solver>\n"
+       << in << "</Control>\n";
+  };
+  control("  ", static_cast<int>(std::ceil(T / opt.dt - 1e-9)), opt.dt, true);
 
   // Materials.
   const char* names[2] = {"anterior_leaflet", "posterior_leaflet"};
@@ -286,10 +296,10 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   // A material, wrapped in the Maxwell branch when there is damping to stand for.
   auto material = [&](int id, const char* name, const char* type, const std::string& params) {
     os << "    <material id=\"" << id << "\" name=\"" << name << "\" type=\""
-       << (relax_s > 0 ? "viscoelastic" : type) << "\">\n      <density>" << num(opt.density)
+       << (maxwell_t1 > 0 ? "viscoelastic" : type) << "\">\n      <density>" << num(opt.density)
        << "</density>\n";
-    if (relax_s > 0) {
-      os << "      <g1>1</g1>\n      <t1>" << num(relax_s) << "</t1>\n      <elastic type=\""
+    if (maxwell_t1 > 0) {
+      os << "      <g1>1</g1>\n      <t1>" << num(maxwell_t1) << "</t1>\n      <elastic type=\""
          << type << "\">\n"
          << params << "      </elastic>\n";
     } else {
@@ -547,21 +557,10 @@ void write_febio(const std::filesystem::path& path, const ClosureScene& scene,
   os << "  </Discrete>\n";
 
   if (hold_s > 0) {
-    // The load held (the curves extend constant) while the Maxwell branch relaxes: steps of
-    // hold / kFebioRelaxSteps, halved on failure as in the closure.
-    const double h = hold_s / kFebioRelaxSteps;
-    os << "  <Step>\n    <step name=\"relax\">\n      <Control>\n        "
-          "<analysis>STATIC</analysis>\n"
-       << "        <time_steps>" << kFebioRelaxSteps << "</time_steps>\n        <step_size>"
-       << num(h)
-       << "</step_size>\n        <time_stepper>\n          <max_retries>10</max_retries>\n"
-       << "          <opt_iter>10</opt_iter>\n          <dtmin>" << num(h / 1024.0)
-       << "</dtmin>\n          <dtmax>" << num(h) << "</dtmax>\n"
-       << "          <aggressiveness>1</aggressiveness>\n          <cutback>0.5</cutback>\n"
-       << "        </time_stepper>\n        <solver>\n"
-       << "          <symmetric_stiffness>symmetric</symmetric_stiffness>\n"
-       << "          <optimize_bw>1</optimize_bw>\n        </solver>\n      </Control>\n"
-       << "    </step>\n  </Step>\n";
+    // The load held (the curves extend constant) while the Maxwell branch relaxes.
+    os << "  <Step>\n    <step name=\"relax\">\n";
+    control("      ", kFebioRelaxSteps, hold_s / kFebioRelaxSteps, false);
+    os << "    </step>\n  </Step>\n";
   }
   os << "  <LoadData>\n" << lc.str() << "  </LoadData>\n";
   // The node positions in mvtwin's node order at every converged step, as text: the closed

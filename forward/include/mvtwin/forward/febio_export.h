@@ -37,10 +37,9 @@ namespace mvtwin::forward {
 ///     them back), an automatic time stepper with retries.
 /// Units are mvtwin's (mm, s, N, MPa, t). What FEBio cannot express is said in the file's
 /// header comment: the mass-proportional damping (the analysis is quasi-static), self-contact
-/// within one
-/// leaflet, the contact wall law and the inversion guard. `comment` (provenance) is written at
-/// the top. Written atomically; throws mvtwin::Error if it cannot be written.
-/// The force-elongation curve of a tension-only spring for FEBio's "nonlinear spring" (measure
+/// within one leaflet, the contact wall law and the inversion guard. `comment` (provenance) is
+/// written at the top. Written atomically; throws mvtwin::Error if it cannot be written. The
+/// force-elongation curve of a tension-only spring for FEBio's "nonlinear spring" (measure
 /// "elongation", extrapolated linearly): elongation DL from the reference length `initial`
 /// (mm) against force (N), so that a spring of rest length `rest` follows `law` (a clip: law
 /// null, linear stiffness k N/mm).
@@ -75,7 +74,7 @@ inline constexpr double kFebioContactRangeFactor = 2.0;
 /// damping as a viscoelastic branch), in kFebioRelaxSteps steps. Long enough for the soft modes
 /// too: under a branch of stiffness K and a mode of stiffness K_soft the mode creeps with the
 /// time constant t1 (1 + K / K_soft), about 1.7 s on virtual patient 1's creeping mode
-/// (docs/forward-status.md), so a hold of 10 t1 (1 s) left it far from rest.
+/// (docs/forward-status.md), so a hold of 10 t1 (1 s) left it half-way.
 inline constexpr double kFebioRelaxTimes = 100.0;
 inline constexpr int kFebioRelaxSteps = 40;
 FebioContactPotential febio_contact_potential(const SelfContactOptions& contact,
