@@ -662,6 +662,17 @@ void ClosureIntegrator::multiply_static(const Eigen::VectorXd& pf, Eigen::Vector
 StepOutcome ClosureIntegrator::solve_static(double tau, ValveState* state) {
   const auto t0 = Clock::now();
   if (contact_) contact_->set_friction(0.0);
+  // The smooth contact distance while Newton runs (SelfContactOptions::smooth_mm), the
+  // nearest triangle's again for whatever follows.
+  struct SmoothScope {
+    SelfContact* c;
+    explicit SmoothScope(SelfContact* contact) : c(contact) {
+      if (c) c->set_smooth(true);
+    }
+    ~SmoothScope() {
+      if (c) c->set_smooth(false);
+    }
+  } smooth_scope(contact_ ? &*contact_ : nullptr);
   if (!static_linear_) {
     StepSolverOptions so = options_.solver;
     so.kind = LinearSolver::kReusedFactorPcg;

@@ -95,6 +95,7 @@ const std::map<std::string, Field>& fields() {
     dbl("inversion_guard", [](ClosureOptions& o) -> double& { return o.inversion_guard; });
     dbl("contact_ccd_depth_mm",
         [](ClosureOptions& o) -> double& { return o.contact.ccd_depth_mm; });
+    dbl("contact_smooth_mm", [](ClosureOptions& o) -> double& { return o.contact.smooth_mm; });
     dbl("contact_wall_factor", [](ClosureOptions& o) -> double& { return o.contact.wall_factor; });
     dbl("contact_stiffness_factor",
         [](ClosureOptions& o) -> double& { return o.contact.stiffness_factor; });
@@ -290,6 +291,8 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
     if (!o.static_rest && n.rfind("static_", 0) == 0) continue;
     // Likewise the crossing depth at 0, every pass a crossing as before it existed.
     if (n == "contact_ccd_depth_mm" && o.contact.ccd_depth_mm == 0) continue;
+    // And the smooth contact distance, which only the static solve uses, at 0 or without it.
+    if (n == "contact_smooth_mm" && (o.contact.smooth_mm == 0 || !o.static_rest)) continue;
     out.emplace_back(n, f.get(o));
   }
   return out;
@@ -309,8 +312,13 @@ std::vector<std::pair<std::string, std::string>> result_options(
   const auto stat = std::find_if(out.begin(), out.end(),
                                  [](const auto& kv) { return kv.first == "static_rest"; });
   if (stat == out.end() || stat->second != "on") {
-    std::erase_if(out, [](const auto& kv) { return kv.first.rfind("static_", 0) == 0; });
+    std::erase_if(out, [](const auto& kv) {
+      return kv.first.rfind("static_", 0) == 0 || kv.first == "contact_smooth_mm";
+    });
   }
+  std::erase_if(out, [](const auto& kv) {
+    return kv.first == "contact_smooth_mm" && std::strtod(kv.second.c_str(), nullptr) == 0;
+  });
   std::erase_if(out, [](const auto& kv) {
     return kv.first == "contact_ccd_depth_mm" && std::strtod(kv.second.c_str(), nullptr) == 0;
   });

@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include <Eigen/Geometry>
+#include <unsupported/Eigen/AutoDiff>
 
 #include "mvtwin/core/error.h"
 #include "mvtwin/core/point_triangle_distance.h"
@@ -16,6 +17,10 @@
 
 namespace mvtwin::forward {
 namespace {
+
+/// Pairs whose nearest triangle lies up to this much beyond the alarm distance are kept while
+/// the smooth distance is on (mm).
+constexpr double kSmoothSlack = 0.3;
 
 /// Squared distance between two points of the unrolled plane, periodic in x with `period`
 /// (0: not periodic).
@@ -155,6 +160,7 @@ bool SelfContactOptions::is_valid(std::string* error) const {
     return bad("contact exclusion must be >= 0 and margin > 0 mm");
   if (!(ccd_depth_mm >= 0 && ccd_depth_mm <= contact_mm))
     return bad("contact_ccd_depth_mm must be in [0, contact distance]");
+  if (!(smooth_mm >= 0 && smooth_mm <= 5)) return bad("contact_smooth_mm must be in [0, 5] mm");
   return true;
 }
 
@@ -433,13 +439,19 @@ void SelfContact::closest_pairs(const Eigen::VectorXd& x, size_t k0, size_t k1,
       best[g].vertex = s_.vertices[i];
       best[g].tri = s_.triangles[t];
       best[g].weights = w;
+      best[g].triangle = t;
+      best[g].vertex_area = s_.vertex_area[i];
+      best[g].surface_vertex = i;
       best[g].normal = n;
       best[g].outward = s_.triangle_outward[t];
       best[g].area = 0.5 * (b - a).cross(c - a).norm();
     }
     for (Pair& b : best) {
       *min_distance = std::min(*min_distance, b.distance);
-      if (b.distance < opt_.alarm_mm) {
+      // The smooth distance may be below the alarm distance where the nearest triangle's is
+      // a little above it (a vertex over a valley): such pairs are kept too, their energy
+      // from the smooth distance alone.
+      if (b.distance < opt_.alarm_mm + (smooth_ ? kSmoothSlack : 0.0)) {
         // A free-edge vertex pressed edge-on against a face stands for little area of its own;
         // the face it presses on carries the load, so the larger of the two areas sets k.
         b.area_from_triangle = b.area >= s_.vertex_area[i];
@@ -465,6 +477,7 @@ int SelfContact::detect(const Eigen::VectorXd& x) {
   } else {
     full_search(x);
   }
+  if (smooth_) x_detect_ = x;
   // The candidates in two parts split between vertices (run_both), each vertex's pairs in
   // candidate order: the same pairs in the same order as one pass.
   size_t mid = candidates_.size() / 2;
@@ -639,12 +652,322 @@ void SelfContact::law(double d, double k, double* force, double* stiffness) cons
   }
 }
 
+bool SelfContact::gather_smooth(const Pair& pr, const Eigen::VectorXd& x, SmoothSet* set) const {
+  set->nodes.clear();
+  set->tris.clear();
+  set->outward.clear();
+  set->edges.clear();
+  set->K.resize(0, 0);
+  if (pr.triangle < 0) return false;
+  const double h = opt_.smooth_mm;
+  const Eigen::Vector3d p = x.segment<3>(3 * pr.vertex);
+  const auto centre = [&](int t) {
+    const auto& T = s_.triangles[t];
+    return Eigen::Vector3d(
+        (x.segment<3>(3 * T[0]) + x.segment<3>(3 * T[1]) + x.segment<3>(3 * T[2])) / 3.0);
+  };
+  // The triangles around the nearest one, over the surface's edges, whose centres lie within
+  // the kernel (h), walking on through triangles up to 2 h away so that a kernel cut by a
+  // long triangle still finds the ones beyond it.
+  // Only the nearest triangle's group, and not the vertex's own neighbours (fixed subsets of
+  // the surface: the distance stays smooth).
+  const auto group = [&](int t) {
+    return s_.triangle_group.empty() ? 0 : static_cast<int>(s_.triangle_group[t] != 0);
+  };
+  const int g0 = group(pr.triangle);
+  std::vector<int> found{pr.triangle}, queue{pr.triangle}, walked;
+  std::unordered_set<int> seen{pr.triangle};
+  while (!queue.empty()) {
+    const int t = queue.back();
+    queue.pop_back();
+    walked.push_back(t);
+    for (int across : edge_neighbour_[t]) {
+      if (across < 0 || group(across) != g0 || !seen.insert(across).second) continue;
+      const double r = (centre(across) - p).norm();
+      if (r > 2.0 * h) continue;
+      queue.push_back(across);
+      if (r < h && !excluded(pr.surface_vertex, across)) found.push_back(across);
+    }
+  }
+  std::unordered_map<int, int> local;
+  set->nodes.push_back(pr.vertex);
+  local[pr.vertex] = 0;
+  const auto local_index = [&](int node) {
+    auto [it, fresh] = local.emplace(node, static_cast<int>(set->nodes.size()));
+    if (fresh) set->nodes.push_back(node);
+    return it->second;
+  };
+  double weight = 0.0;
+  for (int t : found) {
+    if ((centre(t) - p).squaredNorm() >= h * h) continue;
+    weight += 1.0;
+    std::array<int, 3> lt{};
+    for (int k = 0; k < 3; ++k) lt[k] = local_index(s_.triangles[t][k]);
+    set->tris.push_back(lt);
+    set->outward.push_back(s_.triangle_outward[t]);
+  }
+  // The surface's boundary edges whose midpoints lie within the kernel.
+  for (int t : walked) {
+    if (excluded(pr.surface_vertex, t)) continue;
+    const auto& T = s_.triangles[t];
+    for (int k = 0; k < 3; ++k) {
+      if (edge_neighbour_[t][k] >= 0) continue;
+      const int na = T[k], nb = T[(k + 1) % 3], nc = T[(k + 2) % 3];
+      const Eigen::Vector3d mid = 0.5 * (x.segment<3>(3 * na) + x.segment<3>(3 * nb));
+      if ((mid - p).squaredNorm() >= h * h) continue;
+      set->edges.push_back({local_index(na), local_index(nb), local_index(nc)});
+    }
+  }
+  if (weight == 0.0) {
+    set->nodes.clear();
+    set->tris.clear();
+    set->outward.clear();
+    return false;
+  }
+  set->vertex_area = pr.vertex_area;
+  return true;
+}
+
+namespace {
+using Vec12 = Eigen::Matrix<double, 12, 1>;
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+using AD12 = Eigen::AutoDiffScalar<Vec12>;
+
+/// The kernel psi(u) = (1 - u)^3 for u = r^2 / h^2 < 1 (twice differentiable at u = 1).
+template <class S>
+S kernel(const S& u) {
+  const S v = S(1.0) - u;
+  return v * v * v;
+}
+
+/// One triangle's sums (p, a, b, c in Y): its weight w = A psi, w times the signed distance of p
+/// to its plane, w times its area A. Zero outside the kernel.
+template <class S>
+void triangle_terms(const Eigen::Matrix<S, 12, 1>& Y, double outward, double h, S out[3]) {
+  using std::sqrt;
+  using V3 = Eigen::Matrix<S, 3, 1>;
+  const V3 p = Y.template segment<3>(0), a = Y.template segment<3>(3), b = Y.template segment<3>(6),
+           c = Y.template segment<3>(9);
+  const V3 cr = (b - a).cross(c - a);
+  const S twice_area = sqrt(cr.squaredNorm());
+  const V3 ctr = (a + b + c) / S(3.0);
+  const S u = (p - ctr).squaredNorm() / S(h * h);
+  if (!(u < S(1.0)) || !(twice_area > S(0.0))) {
+    out[0] = out[1] = out[2] = S(0.0);
+    return;
+  }
+  const S area = S(0.5) * twice_area;
+  const S w = area * kernel(u);
+  out[0] = w;
+  out[1] = w * (S(outward) / twice_area) * cr.dot(p - ctr);
+  out[2] = w * area;
+}
+
+/// One boundary edge's sums (p, a, b and the third corner c in Y): its weight w = |b - a| psi
+/// and w times the distance of p beyond the edge, along the direction in the triangle's plane
+/// that points away from c.
+template <class S>
+void edge_terms(const Eigen::Matrix<S, 12, 1>& Y, double h, S out[2]) {
+  using std::sqrt;
+  using V3 = Eigen::Matrix<S, 3, 1>;
+  const V3 p = Y.template segment<3>(0), a = Y.template segment<3>(3), b = Y.template segment<3>(6),
+           c = Y.template segment<3>(9);
+  const V3 e = b - a, mid = (a + b) / S(2.0);
+  const V3 n = e.cross(c - a);
+  V3 m = n.cross(e);  // in the plane, perpendicular to the edge, towards c
+  const S len = sqrt(e.squaredNorm()), mlen = sqrt(m.squaredNorm());
+  const S u = (p - mid).squaredNorm() / S(h * h);
+  if (!(u < S(1.0)) || !(mlen > S(0.0))) {
+    out[0] = out[1] = S(0.0);
+    return;
+  }
+  const S w = len * kernel(u);
+  out[0] = w;
+  out[1] = -w * m.dot(p - mid) / mlen;
+}
+
+/// Values, gradients and Hessians (central differences of the exact gradient) of K sums.
+template <int K, class F>
+void local_terms(const Vec12& Y, F&& f, bool with_hessian, double v[K], Vec12 g[K], Mat12 H[K]) {
+  Eigen::Matrix<AD12, 12, 1> Ya;
+  const auto eval = [&](const Vec12& Z, AD12 out[K]) {
+    for (int i = 0; i < 12; ++i) Ya[i] = AD12(Z[i], 12, i);
+    f(Ya, out);
+  };
+  AD12 out[K];
+  eval(Y, out);
+  for (int k = 0; k < K; ++k) {
+    v[k] = out[k].value();
+    g[k] = out[k].derivatives().size() == 12 ? Vec12(out[k].derivatives()) : Vec12::Zero();
+  }
+  if (!with_hessian) return;
+  if (v[0] == 0.0) {
+    for (int k = 0; k < K; ++k) H[k].setZero();
+    return;
+  }
+  constexpr double eps = 1e-6;
+  for (int j = 0; j < 12; ++j) {
+    Vec12 Zp = Y, Zm = Y;
+    Zp[j] += eps;
+    Zm[j] -= eps;
+    AD12 op[K], om[K];
+    eval(Zp, op);
+    eval(Zm, om);
+    for (int k = 0; k < K; ++k) {
+      const Vec12 gp =
+          op[k].derivatives().size() == 12 ? Vec12(op[k].derivatives()) : Vec12::Zero();
+      const Vec12 gm =
+          om[k].derivatives().size() == 12 ? Vec12(om[k].derivatives()) : Vec12::Zero();
+      H[k].col(j) = (gp - gm) / (2 * eps);
+    }
+  }
+  for (int k = 0; k < K; ++k) H[k] = (0.5 * (H[k] + H[k].transpose())).eval();
+}
+
+/// A ratio q = N / D of sums with their gradients and Hessians: q, grad q, Hess q.
+void ratio(double N, double D, const Eigen::VectorXd& gN, const Eigen::VectorXd& gD,
+           const Eigen::MatrixXd* HN, const Eigen::MatrixXd* HD, double* q, Eigen::VectorXd* gq,
+           Eigen::MatrixXd* Hq) {
+  *q = N / D;
+  *gq = (gN - *q * gD) / D;
+  if (Hq) *Hq = (*HN - *q * *HD - *gq * gD.transpose() - gD * gq->transpose()) / D;
+}
+}  // namespace
+
+double SelfContact::smooth_energy(const SmoothSet& set, const Eigen::VectorXd& X,
+                                  Eigen::VectorXd* gradient, Eigen::MatrixXd* hessian,
+                                  double* distance) const {
+  const double h = opt_.smooth_mm;
+  const Eigen::Index n = X.size();
+  const bool want_h = hessian != nullptr;
+  // The sums over the kernel's triangles (W, F, AA) and boundary edges (WE, G).
+  double sum[5] = {0, 0, 0, 0, 0};
+  std::vector<Eigen::VectorXd> grad(5, Eigen::VectorXd::Zero(n));
+  std::vector<Eigen::MatrixXd> hess(want_h ? 5 : 0, Eigen::MatrixXd::Zero(n, n));
+  const auto scatter = [&](const std::array<int, 4>& idx, int which, double v, const Vec12& g,
+                           const Mat12& H) {
+    sum[which] += v;
+    for (int a = 0; a < 4; ++a) {
+      grad[which].segment<3>(3 * idx[a]) += g.segment<3>(3 * a);
+      if (!want_h) continue;
+      for (int b = 0; b < 4; ++b)
+        hess[which].block<3, 3>(3 * idx[a], 3 * idx[b]) += H.block<3, 3>(3 * a, 3 * b);
+    }
+  };
+  for (size_t t = 0; t < set.tris.size(); ++t) {
+    const std::array<int, 4> idx{0, set.tris[t][0], set.tris[t][1], set.tris[t][2]};
+    Vec12 Y;
+    for (int a = 0; a < 4; ++a) Y.segment<3>(3 * a) = X.segment<3>(3 * idx[a]);
+    double v[3];
+    Vec12 g[3];
+    Mat12 H[3];
+    const double out = set.outward[t];
+    local_terms<3>(
+        Y, [&](const Eigen::Matrix<AD12, 12, 1>& Z, AD12 o[3]) { triangle_terms(Z, out, h, o); },
+        want_h, v, g, H);
+    for (int k = 0; k < 3; ++k) scatter(idx, k, v[k], g[k], H[k]);
+  }
+  for (const auto& e : set.edges) {
+    const std::array<int, 4> idx{0, e[0], e[1], e[2]};
+    Vec12 Y;
+    for (int a = 0; a < 4; ++a) Y.segment<3>(3 * a) = X.segment<3>(3 * idx[a]);
+    double v[2];
+    Vec12 g[2];
+    Mat12 H[2];
+    local_terms<2>(
+        Y, [&](const Eigen::Matrix<AD12, 12, 1>& Z, AD12 o[2]) { edge_terms(Z, h, o); }, want_h, v,
+        g, H);
+    for (int k = 0; k < 2; ++k) scatter(idx, 3 + k, v[k], g[k], H[k]);
+  }
+  if (gradient) gradient->setZero(n);
+  if (hessian) hessian->setZero(n, n);
+  if (!(sum[0] > 0.0)) {
+    *distance = std::numeric_limits<double>::infinity();
+    return 0.0;
+  }
+  // f: the kernel's mean plane distance; A: its mean triangle area; g: the mean distance
+  // beyond the boundary's edges.
+  double f, A, g = 0.0;
+  Eigen::VectorXd gf, gA, gg = Eigen::VectorXd::Zero(n);
+  Eigen::MatrixXd Hf, HA, Hg;
+  ratio(sum[1], sum[0], grad[1], grad[0], want_h ? &hess[1] : nullptr, want_h ? &hess[0] : nullptr,
+        &f, &gf, want_h ? &Hf : nullptr);
+  ratio(sum[2], sum[0], grad[2], grad[0], want_h ? &hess[2] : nullptr, want_h ? &hess[0] : nullptr,
+        &A, &gA, want_h ? &HA : nullptr);
+  if (sum[3] > 0.0)
+    ratio(sum[4], sum[3], grad[4], grad[3], want_h ? &hess[4] : nullptr,
+          want_h ? &hess[3] : nullptr, &g, &gg, want_h ? &Hg : nullptr);
+  // The distance: f over the surface; beyond its boundary (g > 0) sqrt(f^2 + g^2), positive.
+  double d = f, df = 1.0, dg = 0.0, dff = 0.0, dfg = 0.0, dgg = 0.0;
+  const bool beyond = g > 0.0;
+  if (beyond) {
+    d = std::sqrt(f * f + g * g);
+    df = f / d;
+    dg = g / d;
+    const double d3 = d * d * d;
+    dff = g * g / d3;
+    dgg = f * f / d3;
+    dfg = -f * g / d3;
+  }
+  *distance = d;
+  const double da = opt_.alarm_mm, dc = opt_.contact_mm;
+  if (d >= da) return 0.0;
+  double phi = 0.5 * (da - d) * (da - d), phi1 = -(da - d), phi2 = 1.0;
+  if (d < dc && dc > 0) {
+    const double kw = opt_.wall_factor / dc, e = dc - d;
+    phi += kw * e * e * e / 6.0;
+    phi1 -= 0.5 * kw * e * e;
+    phi2 += kw * e;
+  }
+  // k = stiffness per area x the larger of the vertex's and the kernel's mean area (smoothly).
+  const double Av = set.vertex_area, D = A - Av, eps = 0.05 * Av, sD = std::sqrt(D * D + eps * eps);
+  const double area = 0.5 * (A + Av + sD), area1 = 0.5 * (1.0 + D / sD),
+               area2 = 0.5 * eps * eps / (sD * sD * sD);
+  const double k = stiffness_per_area_ * area, k1 = stiffness_per_area_ * area1,
+               k2 = stiffness_per_area_ * area2;
+  const double E = k * phi;
+  const double Ef = k * phi1 * df, Eg = k * phi1 * dg, EA = k1 * phi;
+  if (gradient) *gradient = Ef * gf + Eg * gg + EA * gA;
+  if (hessian) {
+    const double Eff = k * (phi2 * df * df + phi1 * dff), Egg = k * (phi2 * dg * dg + phi1 * dgg),
+                 Efg = k * (phi2 * df * dg + phi1 * dfg), EfA = k1 * phi1 * df,
+                 EgA = k1 * phi1 * dg, EAA = k2 * phi;
+    Eigen::MatrixXd& Hm = *hessian;
+    Hm = Ef * Hf + EA * HA + Eff * gf * gf.transpose() + EAA * gA * gA.transpose() +
+         EfA * (gf * gA.transpose() + gA * gf.transpose());
+    if (beyond)
+      Hm += Eg * Hg + Egg * gg * gg.transpose() +
+            Efg * (gf * gg.transpose() + gg * gf.transpose()) +
+            EgA * (gg * gA.transpose() + gA * gg.transpose());
+  }
+  return E;
+}
+
 double SelfContact::add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f) {
   double energy = 0.0;
   const double da = opt_.alarm_mm, dc = opt_.contact_mm;
-  for (Pair& pr : pairs_) {
+  smooth_sets_.assign(smooth_ ? pairs_.size() : 0, SmoothSet{});
+  for (size_t i = 0; i < pairs_.size(); ++i) {
+    Pair& pr = pairs_[i];
     pr.force = pr.stiffness = pr.eta = 0.0;
+    if (smooth_ && gather_smooth(pr, x_detect_, &smooth_sets_[i])) {
+      // The smooth distance (at rest: no friction): the force is minus the energy's gradient.
+      const SmoothSet& set = smooth_sets_[i];
+      Eigen::VectorXd X(3 * set.nodes.size()), g;
+      for (size_t a = 0; a < set.nodes.size(); ++a)
+        X.segment<3>(3 * static_cast<Eigen::Index>(a)) = x_detect_.segment<3>(3 * set.nodes[a]);
+      double d = 0.0;
+      energy += smooth_energy(set, X, &g, nullptr, &d);
+      for (size_t a = 0; a < set.nodes.size(); ++a)
+        f->segment<3>(3 * set.nodes[a]) -= g.segment<3>(3 * static_cast<Eigen::Index>(a));
+      // For the preconditioner's diagonal blocks: the law's stiffness at the pair's own
+      // distance along its normal.
+      law(pr.distance, stiffness_per_area_ * pr.area, &pr.force, &pr.stiffness);
+      pr.force = 0.0;
+      continue;
+    }
     if (pr.distance >= da) continue;
+
     const double k = stiffness_per_area_ * pr.area;
     law(pr.distance, k, &pr.force, &pr.stiffness);
     energy += 0.5 * k * (da - pr.distance) * (da - pr.distance);
@@ -667,8 +990,10 @@ double SelfContact::add_forces(const Eigen::VectorXd& v, Eigen::VectorXd* f) {
 
 void SelfContact::multiply(const Eigen::VectorXd& p, double scale_k, double scale_c,
                            Eigen::VectorXd* y) const {
-  for (const Pair& pr : pairs_) {
+  for (size_t i = 0; i < pairs_.size(); ++i) {
+    const Pair& pr = pairs_[i];
     if (pr.stiffness == 0.0 && pr.eta == 0.0) continue;
+    if (i < smooth_sets_.size() && !smooth_sets_[i].nodes.empty()) continue;
     const Stencil st = stencil(pr);
     Eigen::Vector3d jp = Eigen::Vector3d::Zero();
     for (int a = 0; a < 4; ++a) jp += st.c[a] * p.segment<3>(3 * st.nodes[a]);
@@ -709,6 +1034,19 @@ void SelfContact::linearize_exact(const Eigen::VectorXd& x) {
     const Pair& pr = pairs_[i];
     Eigen::Matrix<double, 12, 12>& K = exact_[i];
     K.setZero();
+    if (i < smooth_sets_.size() && !smooth_sets_[i].nodes.empty()) {
+      // The smooth distance: the energy's Hessian, central differences of its exact gradient.
+      SmoothSet& set = smooth_sets_[i];
+      const Eigen::Index n = 3 * static_cast<Eigen::Index>(set.nodes.size());
+      Eigen::VectorXd X(n);
+      for (size_t a = 0; a < set.nodes.size(); ++a)
+        X.segment<3>(3 * static_cast<Eigen::Index>(a)) = x.segment<3>(3 * set.nodes[a]);
+      Eigen::VectorXd g;
+      double d = 0.0;
+      smooth_energy(set, X, &g, &set.K, &d);
+      set.K = (0.5 * (set.K + set.K.transpose())).eval();
+      continue;
+    }
     if (pr.stiffness == 0.0 && pr.force == 0.0) continue;
     const int nodes[4] = {pr.vertex, pr.tri[0], pr.tri[1], pr.tri[2]};
     Eigen::Matrix<double, 12, 1> X;
@@ -748,6 +1086,16 @@ void SelfContact::multiply_exact(const Eigen::VectorXd& p, Eigen::VectorXd* y) c
     for (int a = 0; a < 4; ++a) pe.segment<3>(3 * a) = p.segment<3>(3 * nodes[a]);
     const Eigen::Matrix<double, 12, 1> ye = exact_[i] * pe;
     for (int a = 0; a < 4; ++a) y->segment<3>(3 * nodes[a]) += ye.segment<3>(3 * a);
+  }
+  for (const SmoothSet& set : smooth_sets_) {
+    if (set.nodes.empty() || set.K.rows() == 0) continue;
+    const Eigen::Index n = set.K.rows();
+    Eigen::VectorXd pe(n);
+    for (size_t a = 0; a < set.nodes.size(); ++a)
+      pe.segment<3>(3 * static_cast<Eigen::Index>(a)) = p.segment<3>(3 * set.nodes[a]);
+    const Eigen::VectorXd ye = set.K * pe;
+    for (size_t a = 0; a < set.nodes.size(); ++a)
+      y->segment<3>(3 * set.nodes[a]) += ye.segment<3>(3 * static_cast<Eigen::Index>(a));
   }
 }
 

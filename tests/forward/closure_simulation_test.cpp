@@ -618,8 +618,27 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
     EXPECT_NE(why.find("contact_ccd_depth_mm must be in [0, contact distance]"), std::string::npos)
         << why;
   }
+  // The smooth contact distance only where the static solve uses it.
+  auto has_smooth = [](const std::vector<std::pair<std::string, std::string>>& d) {
+    return std::any_of(d.begin(), d.end(),
+                       [](const auto& kv) { return kv.first == "contact_smooth_mm"; });
+  };
+  ClosureOptions smooth = o;
+  smooth.contact.smooth_mm = 1.5;
+  EXPECT_FALSE(has_smooth(describe_result_options(o)));
+  EXPECT_FALSE(has_smooth(describe_result_options(smooth))) << "no effect without the static solve";
+  smooth.static_rest = true;
+  EXPECT_TRUE(has_smooth(describe_result_options(smooth)));
+  EXPECT_FALSE(has_smooth(result_options({{"static_rest", "on"}, {"contact_smooth_mm", "0"}})));
+  {
+    ClosureOptions wide = o;
+    apply_option("contact_smooth_mm=6", &wide);
+    std::string why;
+    EXPECT_FALSE(wide.is_valid(&why));
+    EXPECT_NE(why.find("contact_smooth_mm must be in [0, 5] mm"), std::string::npos) << why;
+  }
   // Every described option can be set back from its description.
-  for (const ClosureOptions& given : {o, tolerant}) {
+  for (const ClosureOptions& given : {o, tolerant, smooth}) {
     ClosureOptions copy;
     for (const auto& [name, value] : describe_options(given))
       apply_option(name + "=" + value, &copy);

@@ -634,5 +634,130 @@ TEST(SelfContact, WallHoldsALoadThePenaltyAloneCannot) {
   for (int i = 25; i < 50; ++i) EXPECT_GT(x[3 * i + 2], 0.0) << "vertex " << i << " went through";
 }
 
+// The static solve's smooth distance (SelfContactOptions::smooth_mm): the kernel's mean of the
+// other surface's face planes, so that the energy is smooth where the nearest face changes.
+SelfContactOptions smooth_options() {
+  SelfContactOptions o = options();
+  o.smooth_mm = 1.5;
+  return o;
+}
+
+// Energy, forces and (optionally) the exact stiffness of a smooth contact at x.
+double smooth_forces(const SelfContact::Surface& surface, const Eigen::VectorXd& x,
+                     Eigen::VectorXd* f, SelfContact* keep = nullptr) {
+  SelfContact local(surface, smooth_options(), kStiffness, kMaxDepth);
+  SelfContact& c = keep ? *keep : local;
+  c.set_smooth(true);
+  c.detect(x);
+  f->setZero(x.size());
+  return c.add_forces(Eigen::VectorXd::Zero(x.size()), f);
+}
+
+// Over a flat face the smooth distance is the plane's: a vertex of the upper plate over the
+// lower one's interior feels the nearest-triangle law's force, whatever triangles its kernel
+// holds. The forces are minus the energy's gradient (pairs found again on each side), and
+// the energy does not change when the plates move or turn together: no net force, no net torque.
+TEST(SmoothContact, IsExactOverAFlatFaceAndItsForceIsMinusTheEnergyGradient) {
+  const Plates p = make_plates(9, 0.4, 0.37);
+  Eigen::VectorXd f, f0;
+  smooth_forces(p.surface, p.x, &f);
+  SelfContact plain(p.surface, options(), kStiffness, kMaxDepth);
+  plain.detect(p.x);
+  f0.setZero(p.x.size());
+  plain.add_forces(Eigen::VectorXd::Zero(p.x.size()), &f0);
+  const int inner = 81 + 4 * 9 + 4;  // the upper plate's centre, far from the lower one's rim
+  EXPECT_GT(f[3 * inner + 2], 0.0) << "pushed away from the lower plate (up)";
+  Eigen::Vector3d net = Eigen::Vector3d::Zero(), torque = net;
+  for (Eigen::Index i = 0; i < p.x.size() / 3; ++i) {
+    net += f.segment<3>(3 * i);
+    torque += Eigen::Vector3d(p.x.segment<3>(3 * i)).cross(Eigen::Vector3d(f.segment<3>(3 * i)));
+  }
+  EXPECT_LT(net.norm(), 1e-12 * f.norm() * p.x.size());
+  EXPECT_LT(torque.norm(), 1e-11 * f.norm() * p.x.size());
+  // The law's force at 0.4 mm with the vertex's area (1 mm^2), as the plain law gives it.
+  EXPECT_NEAR(f[3 * inner + 2], f0[3 * inner + 2], 0.05 * f0[3 * inner + 2]);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01;
+  Eigen::VectorXd e(p.x.size());
+  for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = n01(rng);
+  const double h = 1e-6;
+  Eigen::VectorXd g;
+  const double fd =
+      -(smooth_forces(p.surface, p.x + h * e, &g) - smooth_forces(p.surface, p.x - h * e, &g)) /
+      (2 * h);
+  EXPECT_NEAR(fd, f.dot(e), 1e-6 * std::abs(f.dot(e))) << "f . e against -dE/de";
+}
+
+// A vertex swept across a valley of the other surface (the crease where the static solve
+// stalled): the nearest triangle's law turns the force by the angle between the faces at the
+// valley's floor, the smooth one turns it gradually. Steps of 0.005 mm: the largest change of
+// the sideways force per step is a small part of the plain law's jump.
+TEST(SmoothContact, TheForceTurnsSmoothlyAcrossAValley) {
+  double plain_jump = 0.0, smooth_step = 0.0, last_plain = 0.0, last_smooth = 0.0;
+  for (int k = 0; k <= 120; ++k) {
+    const double xk = 1.7 + k * 0.005;
+    const Plates p = valley(false, {xk, 1.6, 0.35}, 0.3);
+    Eigen::VectorXd fs, fp = Eigen::VectorXd::Zero(p.x.size());
+    smooth_forces(p.surface, p.x, &fs);
+    SelfContact plain(p.surface, options(), kStiffness, kMaxDepth);
+    plain.detect(p.x);
+    plain.add_forces(Eigen::VectorXd::Zero(p.x.size()), &fp);
+    ASSERT_GT(fs[3 * 31 + 2], 0.0) << xk;
+    if (k > 0) {
+      plain_jump = std::max(plain_jump, std::abs(fp[3 * 31] - last_plain));
+      smooth_step = std::max(smooth_step, std::abs(fs[3 * 31] - last_smooth));
+    }
+    last_plain = fp[3 * 31];
+    last_smooth = fs[3 * 31];
+  }
+  std::printf(
+      "  largest sideways force change per 0.005 mm: nearest triangle %.3g N, smooth %.3g N\n",
+      plain_jump, smooth_step);
+  EXPECT_GT(plain_jump, 0.0);
+  EXPECT_LT(smooth_step, 0.05 * plain_jump);
+}
+
+// The exact stiffness of the smooth pairs (linearize_exact / multiply_exact) against central
+// differences of the forces, along random directions, over a valley, a bowl and beyond a plate's
+// rim (where the distance to the boundary's edges joins in).
+TEST(SmoothContact, TheExactStiffnessIsTheForcesDerivative) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n01;
+  const std::vector<std::pair<bool, Eigen::Vector3d>> cases{
+      {false, {2.0, 1.6, 0.3}}, {true, {2.1, 1.9, 0.25}}, {false, {4.25, 1.6, 0.45}}};
+  for (const auto& [bowl, at] : cases) {
+    const Plates p = valley(bowl, at, 0.3);
+    SelfContact c(p.surface, smooth_options(), kStiffness, kMaxDepth);
+    Eigen::VectorXd f;
+    smooth_forces(p.surface, p.x, &f, &c);
+    ASSERT_GT(f.norm(), 0.0) << at.transpose();
+    c.linearize_exact(p.x);
+    for (int trial = 0; trial < 3; ++trial) {
+      Eigen::VectorXd e(p.x.size());
+      for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = n01(rng);
+      Eigen::VectorXd Ke = Eigen::VectorXd::Zero(p.x.size()), fp, fm;
+      c.multiply_exact(e, &Ke);
+      const double h = 1e-6;
+      smooth_forces(p.surface, p.x + h * e, &fp);
+      smooth_forces(p.surface, p.x - h * e, &fm);
+      const Eigen::VectorXd fd = -(fp - fm) / (2 * h);
+      EXPECT_LT((Ke - fd).norm(), 1e-4 * Ke.norm())
+          << "at " << at.transpose() << " trial " << trial;
+    }
+  }
+}
+
+// Beyond a plate's rim (the free edge of a leaflet) the outside wraps around: the smooth distance
+// is positive below the face's plane as above it, and the vertex is pushed away from the rim.
+TEST(SmoothContact, BeyondTheRimTheVertexIsOutside) {
+  for (const double z : {-0.15, 0.15}) {
+    const Plates p = valley(false, {4.2, 1.6, 0.44 + z}, 0.2);  // the face's plane: z = 0.44
+    Eigen::VectorXd f;
+    smooth_forces(p.surface, p.x, &f);
+    EXPECT_GT(f[3 * 31], 0.0) << "pushed outwards, beyond the rim (z " << z << ")";
+    EXPECT_GT(z * f[3 * 31 + 2], 0.0) << "and away from the plane's side it is on (z " << z << ")";
+  }
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

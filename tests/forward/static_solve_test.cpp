@@ -265,5 +265,31 @@ TEST(StaticSolveOnThePapersGrid, NoIterationRaisesTheResidualPastTheGrowthBound)
   EXPECT_LT(h.size(), 30u) << "given up well before the 37 iterations of the slope test alone";
 }
 
+// The same patient with the smooth contact distance (SelfContactOptions::smooth_mm): the crease
+// of its commissural fold, where a vertex's nearest face flipped between two from one iteration
+// to the next and Newton stalled at a seventh of the load, no longer breaks the residual, and
+// Newton converges with a quadratic tail (docs/forward-status.md).
+TEST(StaticSolveOnThePapersGrid, TheSmoothContactDistanceLetsNewtonConvergeWhereItStalled) {
+#ifdef __SANITIZE_ADDRESS__
+  GTEST_SKIP() << "a closure of the paper's grid takes minutes under AddressSanitizer";
+#endif
+  const Patient p = make_virtual_patient(3);
+  ClosureOptions o;
+  o.static_rest = true;
+  o.contact.smooth_mm = 1.5;
+  const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
+  ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
+  const std::vector<double>& h = r.summary.static_history;
+  std::printf("  residual per iteration, N:");
+  for (double x : h) std::printf(" %.3g", x);
+  std::printf("\n");
+  EXPECT_TRUE(r.summary.static_failure.empty()) << r.summary.static_failure;
+  EXPECT_LT(r.summary.static_relative_residual, 1e-4);
+  ASSERT_GE(h.size(), 3u);
+  // The last two iterations each cut the residual at least tenfold.
+  EXPECT_LT(h[h.size() - 1], 0.1 * h[h.size() - 2]);
+  EXPECT_LT(h[h.size() - 2], 0.1 * h[h.size() - 3]);
+}
+
 }  // namespace
 }  // namespace mvtwin::forward

@@ -37,6 +37,11 @@ struct SelfContactOptions {
   /// and every step is refused: the observation's last retry allows 0.1 mm
   /// (forward::observation_attempts; docs/virtual-patients.md). At most the contact distance.
   double ccd_depth_mm = 0.0;
+  /// The static solve's contact distance over a smoothed surface (SelfContact, "The smooth
+  /// distance"): the radius (mm) of the kernel that blends the other leaflet's face planes
+  /// around a vertex's nearest point. 0: the nearest triangle's distance, as in the dynamic
+  /// closure.
+  double smooth_mm = 0.0;
   double exclusion_mm = 4.0;  ///< surface neighbours closer than this (unrolled) never pair
   double margin_mm = 1.5;     ///< Verlet margin of the candidate list
 
@@ -75,6 +80,26 @@ struct SelfContactOptions {
 /// the nearest point passes from a face over an edge to the next face, inside as outside. On
 /// the surface's boundary (the free edge, the commissures) d beyond an edge is positive.
 ///
+/// The smooth distance (SelfContactOptions::smooth_mm = h > 0, while set_smooth(true): the
+/// static solve). The nearest triangle's distance has a kink wherever the nearest face changes
+/// (over a valley or a ridge of the other surface the force turns by the angle between the
+/// faces), so that an equilibrium in a crease has no exact zero and Newton cannot converge to it
+/// (virtual patient 3's commissural fold). Instead, a vertex p paired with a triangle measures
+/// its distance to an implicit surface of the faces around that triangle (moving least squares
+/// of the face planes, as in Shen, O'Brien and Shewchuk 2004): over the triangles t of the same
+/// group, reached over the surface's edges and not the vertex's own neighbours, with centres c_t
+/// within h of p, weights w_t = A_t (1 - |p - c_t|^2 / h^2)^3 (A_t the area), outward normals n_t,
+///   f(p) = sum_t w_t n_t . (p - c_t) / sum_t w_t,
+/// exact over a flat face and twice differentiable in every node. Beyond the surface's boundary
+/// (the free edge, the annulus) the same mean over the boundary's edges e of the distance g_e
+/// beyond each (in its face's plane, away from the face) gives g, and where g > 0 the vertex is
+/// outside: d = sqrt(f^2 + g^2). The pair's energy is the law's, k(A) phi(d), with k from the
+/// larger (smoothly) of the vertex's area and the kernel's mean triangle area; its force is
+/// minus the energy's exact gradient (automatic differentiation per triangle and edge), its
+/// stiffness the exact Hessian (central differences of those gradients, per triangle). Pairs
+/// whose nearest triangle is up to 0.3 mm beyond the alarm distance are kept, so that the
+/// smooth distance decides. Without friction (the static solve's rest state has none).
+///
 /// Tangent: the Gauss-Newton stiffness k(d) J^T n n^T J of each pair (J = [I, -w0, -w1, -w2]
 /// maps the four nodes' motion to the vertex's motion relative to its closest point) plus the
 /// friction damping. multiply() applies it with all vertex-triangle couplings (for an iterative
@@ -96,6 +121,9 @@ class SelfContact {
     /// Signed: negative once the vertex is through the triangle (over its face) or on the inner
     /// side of the edge's or corner's pseudo-normal; -0.0 on such a feature itself.
     double distance;
+    int triangle = -1;                ///< index of the nearest triangle in the surface
+    double vertex_area = 0.0;         ///< the vertex's own area, mm^2
+    int surface_vertex = -1;          ///< index of the vertex in the surface's vertices
     signed char outward = 1;          ///< the triangle's Surface::triangle_outward
     bool area_from_triangle = false;  ///< `area` is the triangle's (not the vertex's)
     double area;                      ///< surface area the vertex stands for, mm^2
@@ -171,6 +199,12 @@ class SelfContact {
   void set_threads(int threads) { threads_ = threads; }
   /// Changes the friction coefficient (the settling phase turns friction off).
   void set_friction(double friction) { opt_.friction = friction; }
+  /// The smooth distance (SelfContactOptions::smooth_mm) on or off: the static solve turns it
+  /// on while it runs (no effect when smooth_mm is 0).
+  void set_smooth(bool on) {
+    smooth_ = on && opt_.smooth_mm > 0.0;
+    if (!smooth_) smooth_sets_.clear();
+  }
 
   const std::vector<Pair>& pairs() const { return pairs_; }
   /// Full searches done, and detections that reused the candidate list instead.
@@ -199,6 +233,29 @@ class SelfContact {
   Surface s_;
   std::vector<Pair> pairs_;
   std::vector<Eigen::Matrix<double, 12, 12>> exact_;  // per pair, from linearize_exact()
+  // The smooth distance: per pair (empty where the pair keeps the nearest triangle's distance,
+  // beyond the surface's boundary), the nodes of its kernel's triangles (the vertex first), the
+  // triangles over those local indices and their outward signs; its exact stiffness from
+  // linearize_exact().
+  struct SmoothSet {
+    std::vector<int> nodes;
+    std::vector<std::array<int, 3>> tris;
+    std::vector<signed char> outward;
+    // The surface's boundary edges near the vertex: corners 0 and 1, and the third corner of
+    // their triangle (local indices), whose side is inside.
+    std::vector<std::array<int, 3>> edges;
+    double vertex_area = 0.0;
+    Eigen::MatrixXd K;
+  };
+  std::vector<SmoothSet> smooth_sets_;
+  bool smooth_ = false;
+  Eigen::VectorXd x_detect_;  // positions at the last detect() (the smooth distance's)
+  // The smooth set of pair pr at x (false: the pair keeps the nearest triangle's distance).
+  bool gather_smooth(const Pair& pr, const Eigen::VectorXd& x, SmoothSet* set) const;
+  // The pair's energy (N mm) over its smooth set at the set's node positions X (3 per node),
+  // with its gradient and Hessian when asked, and the smooth distance.
+  double smooth_energy(const SmoothSet& set, const Eigen::VectorXd& X, Eigen::VectorXd* gradient,
+                       Eigen::MatrixXd* hessian, double* distance) const;
   // Per triangle, in the unrolled plane: the centre of its corners, and the squared
   // centre-to-vertex distances below which every corner (inside2) and above which no corner
   // (outside2) is within the exclusion distance of the vertex; between them excluded() looks
