@@ -242,7 +242,8 @@ TEST_F(StaticSolve, StopsWhenStalledAtRoundOff) {
   std::printf("\n");
 }
 
-// On bench closure's virtual patient 3 (the paper's grid, static_rest on) the slope test alone
+// On bench closure's virtual patient 3 (the paper's grid, static_rest on, the nearest triangle's
+// contact distance) the slope test alone
 // took a line-search trial that raised |r| 128-fold (0.0721 -> 9.23 N) and Newton wandered for 37
 // iterations before settling took over. The growth bound refuses such trials: no iteration
 // raises |r| more than kStaticResidualGrowth-fold, and the stalled solve is given up sooner.
@@ -253,6 +254,7 @@ TEST(StaticSolveOnThePapersGrid, NoIterationRaisesTheResidualPastTheGrowthBound)
   const Patient p = make_virtual_patient(3);
   ClosureOptions o;
   o.static_rest = true;
+  o.contact.smooth_mm = 0.0;  // the nearest triangle's distance, whose crease stalls Newton
   const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const std::vector<double>& h = r.summary.static_history;
@@ -265,7 +267,8 @@ TEST(StaticSolveOnThePapersGrid, NoIterationRaisesTheResidualPastTheGrowthBound)
   EXPECT_LT(h.size(), 30u) << "given up well before the 37 iterations of the slope test alone";
 }
 
-// The same patient with the smooth contact distance (SelfContactOptions::smooth_mm): the crease
+// The same patient with the smooth contact distance (SelfContactOptions::smooth_mm, the
+// default): the crease
 // of its commissural fold, where a vertex's nearest face flipped between two from one iteration
 // to the next and Newton stalled at a seventh of the load, no longer breaks the residual, and
 // Newton converges with a quadratic tail (docs/forward-status.md).
