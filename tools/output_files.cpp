@@ -64,6 +64,13 @@ nlohmann::json simulation_summary_json(const forward::ClosureResult& r,
       j[k] = nullptr;
   }
   if (!r.clip_gap_end_mm.empty()) j["clip_gap_end_mm"] = r.clip_gap_end_mm;
+  if (o.static_rest) {
+    const forward::ClosureSummary& s = r.summary;
+    j["static_solve"] = {
+        {"converged", s.static_failure.empty()},  {"iterations", s.static_iterations},
+        {"residual_n", s.static_residual_n},      {"relative_residual", s.static_relative_residual},
+        {"residual_history_n", s.static_history}, {"failure", s.static_failure}};
+  }
   return j;
 }
 

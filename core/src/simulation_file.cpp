@@ -53,6 +53,13 @@ void write_simulation_file(const std::filesystem::path& path, const SimulationRe
         [&](const std::string& n, double v, const char* unit) { par.write_scalar(n, v, unit); });
     const h5::Location sum = root.create_group("summary", true);
     for (const auto& [k, v] : r.summary) sum.write_scalar(k, v, nullptr);
+    if (!r.static_residual_n.empty()) {
+      const h5::Location st = root.create_group("static_solve");
+      st.attr("description", std::string("the static equilibrium solve at peak pressure: the force "
+                                         "residual at its start and after each Newton iteration"));
+      st.attr("failure", r.static_failure);
+      st.write("residual_n", r.static_residual_n, {r.static_residual_n.size()}, "N");
+    }
 
     const h5::Location ts = root.create_group("samples");
     ts.attr("ures", static_cast<long>(U));
@@ -115,6 +122,12 @@ SimulationRecord read_simulation_file(const std::filesystem::path& path) {
   {
     const h5::Location sum = root.open_group("summary");
     for (const std::string& k : sum.member_names()) r.summary.emplace_back(k, sum.read_scalar(k));
+  }
+  if (root.exists("static_solve")) {
+    const h5::Location st = root.open_group("static_solve");
+    std::vector<hsize_t> d;
+    r.static_residual_n = st.read_doubles("residual_n", &d, {-1}, "(iterations + 1)");
+    r.static_failure = st.attr_string("failure");
   }
   const h5::Location ts = root.open_group("samples");
   std::vector<hsize_t> d;

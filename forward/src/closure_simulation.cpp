@@ -375,6 +375,10 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"guarded_elements", s.guarded_elements},
                  {"interpenetration_checked", s.interpenetration_checked},
                  {"orifice_s", s.orifice_s}};
+  if (o.static_rest) {
+    rec.static_residual_n = s.static_history;
+    rec.static_failure = s.static_failure;
+  }
   for (const ClosureSample& c : r.samples) {
     rec.time_s.push_back(c.time_s);
     rec.observed_time_s.push_back(c.observed_time_s);

@@ -65,11 +65,19 @@ TEST(SimulationFile, RoundTrip) {
   EXPECT_EQ(y.columns[7].anterior, x.columns[7].anterior);
   EXPECT_EQ(b.orifice_surface.points(), a.orifice_surface.points());
   EXPECT_EQ(b.orifice_lv_surface.points(), a.orifice_lv_surface.points());
+  EXPECT_TRUE(b.static_residual_n.empty()) << "no static solve, no group";
   // Without one (a failed simulation), no group and none read back.
   SimulationRecord c = a;
   c.orifice.reset();
   write_simulation_file(f, c);
   EXPECT_FALSE(read_simulation_file(f).orifice.has_value());
+  // The static solve's residual history and failure, read back as written.
+  c.static_residual_n = {0.86, 0.072, 4.7e-7};
+  c.static_failure = "stalled";
+  write_simulation_file(f, c);
+  const SimulationRecord d = read_simulation_file(f);
+  EXPECT_EQ(d.static_residual_n, c.static_residual_n);
+  EXPECT_EQ(d.static_failure, "stalled");
   fs::remove(f);
 }
 

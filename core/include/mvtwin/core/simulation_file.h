@@ -31,6 +31,11 @@ struct SimulationRecord {
   std::string outcome;
   std::string reason;                                   ///< why it failed
   std::vector<std::pair<std::string, double>> summary;  ///< steps, timings, contacts, ...
+  /// The static solve's residual (N) at its start and after each Newton iteration, and why it
+  /// did not converge (empty when it did); group `static_solve`, absent when the run had none
+  /// (and in files of older versions).
+  std::vector<double> static_residual_n;
+  std::string static_failure;
 
   // Time series (one entry per recorded sample; the last is the end state).
   std::vector<double> time_s, observed_time_s, anterior_tip_mm, posterior_tip_mm, orifice_area_mm2,
