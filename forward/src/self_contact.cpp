@@ -668,9 +668,8 @@ bool SelfContact::gather_smooth(const Pair& pr, const Eigen::VectorXd& x, Smooth
   };
   // The triangles around the nearest one, over the surface's edges, whose centres lie within
   // the kernel (h), walking on through triangles up to 2 h away so that a kernel cut by a
-  // long triangle still finds the ones beyond it.
-  // Only the nearest triangle's group, and not the vertex's own neighbours (fixed subsets of
-  // the surface: the distance stays smooth).
+  // long triangle still finds the ones beyond it; only the nearest triangle's group, and not
+  // the vertex's own neighbours (fixed subsets of the surface: the distance stays smooth).
   const auto group = [&](int t) {
     return s_.triangle_group.empty() ? 0 : static_cast<int>(s_.triangle_group[t] != 0);
   };
@@ -697,10 +696,8 @@ bool SelfContact::gather_smooth(const Pair& pr, const Eigen::VectorXd& x, Smooth
     if (fresh) set->nodes.push_back(node);
     return it->second;
   };
-  double weight = 0.0;
   for (int t : found) {
     if ((centre(t) - p).squaredNorm() >= h * h) continue;
-    weight += 1.0;
     std::array<int, 3> lt{};
     for (int k = 0; k < 3; ++k) lt[k] = local_index(s_.triangles[t][k]);
     set->tris.push_back(lt);
@@ -718,10 +715,10 @@ bool SelfContact::gather_smooth(const Pair& pr, const Eigen::VectorXd& x, Smooth
       set->edges.push_back({local_index(na), local_index(nb), local_index(nc)});
     }
   }
-  if (weight == 0.0) {
+  if (set->tris.empty()) {  // no triangle's centre within the kernel: the nearest's distance
     set->nodes.clear();
-    set->tris.clear();
     set->outward.clear();
+    set->edges.clear();
     return false;
   }
   set->vertex_area = pr.vertex_area;
