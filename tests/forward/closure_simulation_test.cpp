@@ -601,10 +601,10 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
   EXPECT_EQ(settle_keys(result_options({{"dt", "0.01"}, {"settle_max_s", "5"}})), 0);
   // The crossing depth only where it is set (descriptions, and so the observation caches' keys,
   // from before it existed stay the same).
-  auto has_depth = [](const std::vector<std::pair<std::string, std::string>>& d) {
-    return std::any_of(d.begin(), d.end(),
-                       [](const auto& kv) { return kv.first == "contact_ccd_depth_mm"; });
+  auto has = [](const std::vector<std::pair<std::string, std::string>>& d, const char* name) {
+    return std::any_of(d.begin(), d.end(), [&](const auto& kv) { return kv.first == name; });
   };
+  auto has_depth = [&](const auto& d) { return has(d, "contact_ccd_depth_mm"); };
   ClosureOptions tolerant = o;
   tolerant.contact.ccd_depth_mm = 0.1;
   EXPECT_FALSE(has_depth(describe_result_options(o)));
@@ -619,10 +619,7 @@ TEST(ClosureSettings, EachSetterRefusesNamesItCannotUse) {
         << why;
   }
   // The smooth contact distance only where the static solve uses it.
-  auto has_smooth = [](const std::vector<std::pair<std::string, std::string>>& d) {
-    return std::any_of(d.begin(), d.end(),
-                       [](const auto& kv) { return kv.first == "contact_smooth_mm"; });
-  };
+  auto has_smooth = [&](const auto& d) { return has(d, "contact_smooth_mm"); };
   ClosureOptions smooth = o;
   smooth.contact.smooth_mm = 1.5;
   EXPECT_FALSE(has_smooth(describe_result_options(o)));

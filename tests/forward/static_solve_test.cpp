@@ -242,25 +242,34 @@ TEST_F(StaticSolve, StopsWhenStalledAtRoundOff) {
   std::printf("\n");
 }
 
+// Bench closure's virtual patient 3 at the paper's grid, closed and brought to rest by the static
+// solve with the contact distance over a kernel of smooth_mm (0: the nearest triangle's); prints
+// Newton's residual per iteration and why it stopped.
+ClosureResult patient3_at_rest(double smooth_mm) {
+  const Patient p = make_virtual_patient(3);
+  ClosureOptions o;
+  o.static_rest = true;
+  o.contact.smooth_mm = smooth_mm;
+  ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
+  std::printf("  residual per iteration, N:");
+  for (double x : r.summary.static_history) std::printf(" %.3g", x);
+  std::printf("\n  %s\n", r.summary.static_failure.c_str());
+  return r;
+}
+
 // On bench closure's virtual patient 3 (the paper's grid, static_rest on, the nearest triangle's
-// contact distance) the slope test alone
-// took a line-search trial that raised |r| 128-fold (0.0721 -> 9.23 N) and Newton wandered for 37
-// iterations before settling took over. The growth bound refuses such trials: no iteration
-// raises |r| more than kStaticResidualGrowth-fold, and the stalled solve is given up sooner.
+// contact distance) the slope test alone took a line-search trial that raised |r| 128-fold (0.0721
+// -> 9.23 N) and Newton wandered for 37 iterations before settling took over. The growth bound
+// refuses such trials: no iteration raises |r| more than kStaticResidualGrowth-fold, and the
+// stalled solve is given up sooner.
 TEST(StaticSolveOnThePapersGrid, NoIterationRaisesTheResidualPastTheGrowthBound) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "a closure of the paper's grid takes minutes under AddressSanitizer";
 #endif
-  const Patient p = make_virtual_patient(3);
-  ClosureOptions o;
-  o.static_rest = true;
-  o.contact.smooth_mm = 0.0;  // the nearest triangle's distance, whose crease stalls Newton
-  const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
+  // The nearest triangle's distance, whose crease stalls Newton.
+  const ClosureResult r = patient3_at_rest(0.0);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const std::vector<double>& h = r.summary.static_history;
-  std::printf("  residual per iteration, N:");
-  for (double x : h) std::printf(" %.3g", x);
-  std::printf("\n  %s\n", r.summary.static_failure.c_str());
   ASSERT_GE(h.size(), 6u) << "the scene no longer reaches the iteration the bound guards";
   for (size_t i = 1; i < h.size(); ++i)
     EXPECT_LE(h[i], ClosureIntegrator::kStaticResidualGrowth * h[i - 1]) << "iteration " << i;
@@ -268,24 +277,16 @@ TEST(StaticSolveOnThePapersGrid, NoIterationRaisesTheResidualPastTheGrowthBound)
 }
 
 // The same patient with the smooth contact distance (SelfContactOptions::smooth_mm, the
-// default): the crease
-// of its commissural fold, where a vertex's nearest face flipped between two from one iteration
-// to the next and Newton stalled at a seventh of the load, no longer breaks the residual, and
-// Newton converges with a quadratic tail (docs/forward-status.md).
+// default): the crease of its commissural fold, where a vertex's nearest face flipped between two
+// from one iteration to the next and Newton stalled at a seventh of the load, no longer breaks the
+// residual, and Newton converges with a quadratic tail (docs/forward-status.md).
 TEST(StaticSolveOnThePapersGrid, TheSmoothContactDistanceLetsNewtonConvergeWhereItStalled) {
 #ifdef __SANITIZE_ADDRESS__
   GTEST_SKIP() << "a closure of the paper's grid takes minutes under AddressSanitizer";
 #endif
-  const Patient p = make_virtual_patient(3);
-  ClosureOptions o;
-  o.static_rest = true;
-  o.contact.smooth_mm = 1.5;
-  const ClosureResult r = simulate_closure(p.sequence, p.truth->parameters, o);
+  const ClosureResult r = patient3_at_rest(1.5);
   ASSERT_TRUE(r.summary.converged()) << r.summary.reason;
   const std::vector<double>& h = r.summary.static_history;
-  std::printf("  residual per iteration, N:");
-  for (double x : h) std::printf(" %.3g", x);
-  std::printf("\n");
   EXPECT_TRUE(r.summary.static_failure.empty()) << r.summary.static_failure;
   EXPECT_LT(r.summary.static_relative_residual, 1e-4);
   ASSERT_GE(h.size(), 3u);
