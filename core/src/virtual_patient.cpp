@@ -381,14 +381,20 @@ void set_commissure_opening_ed(Draw& d, int ures, int vres, double clearance_mm)
   double column = 0.0;
   for (int u = 0; u < ures; ++u)
     column += (annulus.row((u + 1) % ures) - annulus.row(u)).norm() / ures;
-  auto clearance = [&](double angle) {
+  // Whether the end-diastolic surface at this angle folds closer to itself than clearance_mm.
+  // Only that answer is needed (the bisection below compares the smallest gap with
+  // clearance_mm), so the search stops at the first pair closer than that, and the pairs around
+  // a commissure are swept in the order of their x coordinate, skipping those farther apart in x
+  // alone (with a margin for rounding): the same answer as every pair's distance (0.2 s of a
+  // 0.23 s virtual patient before, 84 % of it here).
+  auto folds = [&](double angle) {
     d.commissure_opening_ed = angle;
     const LeafletGrid g = open_leaflets(d, annulus, vres, 0.0);
-    double gap = std::numeric_limits<double>::infinity();
     // Facing columns (u and ures - u).
     for (int u = 1; u < ures / 2; ++u) {
       for (int v = 1; v < vres; ++v) {
-        for (int w = 1; w < vres; ++w) gap = std::min(gap, (g.at(u, v) - g.at(ures - u, w)).norm());
+        for (int w = 1; w < vres; ++w)
+          if ((g.at(u, v) - g.at(ures - u, w)).norm() < clearance_mm) return true;
       }
     }
     // Around each commissure, within kBeside columns on either side and at quarter columns (the
@@ -397,6 +403,7 @@ void set_commissure_opening_ed(Draw& d, int ures, int vres, double clearance_mm)
     // keep the clearance in space. Folded tighter than that, the models' elements across the
     // fold are slivers (quality 0.002 at 30 x 30).
     constexpr int kBeside = 4, kSub = 4;
+    const double x_apart = clearance_mm * (1.0 + 1e-9);
     for (const double c : {0.0, 0.5}) {
       std::vector<Eigen::Vector3d> x;
       std::vector<Eigen::Vector2d> plane;  // (along the annulus, along the column), mm
@@ -417,23 +424,30 @@ void set_commissure_opening_ed(Draw& d, int ures, int vres, double clearance_mm)
           plane.emplace_back(along, depth);
         }
       }
-      for (size_t i = 0; i < x.size(); ++i) {
-        for (size_t j = i + 1; j < x.size(); ++j) {
+      std::vector<size_t> order(x.size());
+      for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+      std::sort(order.begin(), order.end(),
+                [&](size_t a, size_t b) { return x[a].x() < x[b].x(); });
+      for (size_t a = 0; a < order.size(); ++a) {
+        const size_t i = order[a];
+        for (size_t b = a + 1; b < order.size(); ++b) {
+          const size_t j = order[b];
+          if (x[j].x() - x[i].x() > x_apart) break;
           if ((plane[i] - plane[j]).norm() < 0.75 * column) continue;
-          gap = std::min(gap, (x[i] - x[j]).norm());
+          if ((x[i] - x[j]).norm() < clearance_mm) return true;
         }
       }
     }
-    return gap;
+    return false;
   };
   double lo = 0.5 * (d.al_opening_ed + d.pl_opening_ed), hi = kCommissureOpeningWidest;
-  if (lo >= hi || clearance(lo) >= clearance_mm) {
+  if (lo >= hi || !folds(lo)) {
     d.commissure_opening_ed = std::min(lo, hi);
     return;
   }
   for (int it = 0; it < 30; ++it) {
     const double mid = 0.5 * (lo + hi);
-    (clearance(mid) < clearance_mm ? lo : hi) = mid;
+    (folds(mid) ? lo : hi) = mid;
   }
   d.commissure_opening_ed = hi;
 }
