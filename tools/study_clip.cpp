@@ -84,7 +84,7 @@ void register_study_clip(CLI::App* study, Context& ctx) {
       "clip", "The clip plan on calibrated virtual patients against the truth");
   cmd->footer(
       "Examples:\n"
-      "  mvtwin study clip --quick --patients 1 --out clip_quick/\n"
+      "  mvtwin study clip --quick --patients 1 --no-intervals --out clip_quick/\n"
       "  mvtwin study clip --out clip/   # long: hours on 2 cores\n"
       "  mpirun -np 4 mvtwin study clip --patients 20 --out clip20/\n"
       "Takes the first --patients virtual patients of cohort --seed whose true EROA (their\n"
