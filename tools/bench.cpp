@@ -251,6 +251,7 @@ int run_bench_closure(const BenchClosureArgs& a) {
       j["wall_s_all"] = walls[v];
       j["settle_steps"] = s.settle_steps;
       j["settle_s"] = s.settle_s;
+      j["settle_newton_iterations"] = s.settle_newton_iterations;
       j["newton_iterations"] = s.newton_iterations;
       j["last_step_motion_mm"] = s.last_step_motion_mm;
       if (variants[v].options.static_rest) {
@@ -288,11 +289,11 @@ int run_bench_closure(const BenchClosureArgs& a) {
         j["rest_status"] = "failed";
       }
       std::printf(
-          "patient %-3llu %-7s wall_s %6.2f (median %6.2f)  steps %4d  settle %3d  newton "
+          "patient %-3llu %-7s wall_s %6.2f (median %6.2f)  steps %4d  settle %3d x%-2d newton "
           "%3d  error vs reference %s mm  lag behind own rest %s mm%s\n",
           static_cast<unsigned long long>(seed), variants[v].name.c_str(), sorted.front(),
-          sorted[sorted.size() / 2], s.steps, s.settle_steps, s.static_iterations,
-          error_text.c_str(), lag_text.c_str(),
+          sorted[sorted.size() / 2], s.steps, s.settle_steps, s.settle_newton_iterations,
+          s.static_iterations, error_text.c_str(), lag_text.c_str(),
           s.converged() ? (s.static_failure.empty() ? "" : "  (static solve failed, settled)")
                         : ("  FAILED: " + s.reason).c_str());
       std::fflush(stdout);

@@ -362,7 +362,9 @@ StepOutcome ClosureIntegrator::step(double tau, double h, ValveState* state) {
       v1[free_dofs_[i]] += dv[static_cast<Eigen::Index>(i)];
     ++counters_.newton_iterations;
     counters_.final_update_norm = dv.lpNorm<Eigen::Infinity>();
-    if (counters_.final_update_norm < options_.newton_tolerance) break;
+    if (counters_.final_update_norm < options_.newton_tolerance ||
+        h * counters_.final_update_norm < newton_motion_tolerance_mm_)
+      break;
   }
   const Eigen::VectorXd x1 = state->x + h * v1;
   if (StepOutcome o = check_trial(state->x, x1); !o.ok()) return o;

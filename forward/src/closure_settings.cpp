@@ -109,6 +109,8 @@ const std::map<std::string, Field>& fields() {
     integer("newton_iterations", [](ClosureOptions& o) -> int& { return o.newton_iterations; });
     integer("settle_newton_iterations",
             [](ClosureOptions& o) -> int& { return o.settle_newton_iterations; });
+    integer("settle_newton_max_iterations",
+            [](ClosureOptions& o) -> int& { return o.settle_newton_max_iterations; });
     integer("static_max_iterations",
             [](ClosureOptions& o) -> int& { return o.static_max_iterations; });
     integer("pcg_max_iterations",
@@ -293,6 +295,10 @@ std::vector<std::pair<std::string, std::string>> describe_options(const ClosureO
     if (n == "contact_ccd_depth_mm" && o.contact.ccd_depth_mm == 0) continue;
     // And the smooth contact distance, which only the static solve uses, at 0 or without it.
     if (n == "contact_smooth_mm" && (o.contact.smooth_mm == 0 || !o.static_rest)) continue;
+    // And settling's adaptive iterations where they cannot adapt (as before they existed).
+    if (n == "settle_newton_max_iterations" &&
+        o.settle_newton_max_iterations <= o.settle_newton_iterations)
+      continue;
     out.emplace_back(n, f.get(o));
   }
   return out;

@@ -18,6 +18,9 @@ namespace mvtwin::forward {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+/// Settling's raised Newton iterations stop once a correction moves no free node by more than
+/// this share of settle_mm (the motion that counts as rest).
+constexpr double kSettleCorrectionShare = 0.25;
 
 /// The closure of a built scene; wall_s counts from t_start (the scene's build included). A
 /// failed clip phase is run again twice as long, at most kClipPhaseRetries times.
@@ -78,6 +81,8 @@ bool ClosureOptions::is_valid(std::string* error) const {
     return bad("newton_iterations must be in 1..100");
   if (settle_newton_iterations < 1 || settle_newton_iterations > 100)
     return bad("settle_newton_iterations must be in 1..100");
+  if (settle_newton_max_iterations < settle_newton_iterations || settle_newton_max_iterations > 100)
+    return bad("settle_newton_max_iterations must be in settle_newton_iterations..100");
   if (!(static_tolerance > 0 && static_tolerance < 1))
     return bad("static_tolerance must be in (0, 1) (a fraction of the pressure load)");
   if (!(static_step_mm >= 0 && static_step_mm <= 1))
@@ -157,7 +162,7 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
   ClosureResult result;
   ValveState state = integrator.initial_state();
   const double T = scene.duration();
-  int steps = 0, halvings_total = 0, rejected = 0, settle_steps = 0;
+  int steps = 0, halvings_total = 0, rejected = 0, settle_steps = 0, settle_iterations = 0;
   double settle_s = 0.0, last_motion_mm = 0.0, orifice_s = 0.0;
   std::string static_failure;
   auto finish = [&](Outcome outcome, std::string reason) {
@@ -171,6 +176,7 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
     sum.rejected = rejected;
     sum.settle_steps = settle_steps;
     sum.settle_s = settle_s;
+    sum.settle_newton_iterations = settle_iterations;
     sum.last_step_motion_mm = last_motion_mm;
     sum.orifice_s = orifice_s;
     sum.static_failure = static_failure;
@@ -245,8 +251,16 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
   // equilibrium. Returns false (the result finished as failed) when a step fails.
   auto settle = [&](double until_mm) {
     integrator.disable_friction();
-    integrator.set_newton_iterations(opt.settle_newton_iterations);
+    int& iterations = settle_iterations;
+    iterations = std::max(iterations, opt.settle_newton_iterations);
+    integrator.set_newton_iterations(iterations);
+    // Once raised, as many as a step needs: until a correction moves no node by a quarter of
+    // the motion that counts as rest.
+    if (iterations > opt.settle_newton_iterations)
+      integrator.set_newton_motion_tolerance(kSettleCorrectionShare * until_mm);
     double h = opt.dt;
+    ValveState two_before;  // the state before the last full-size step, if the last was one
+    bool have_two_before = false;
     while (settle_s < opt.settle_max_s - 1e-12) {
       const ValveState before = state;
       int halvings = 0;
@@ -264,7 +278,18 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
       last_motion_mm = integrator.largest_motion(before, state);
       // At rest: a full-size step (a small one moves little even while the valve creeps).
       const double h_max = std::max(opt.settle_max_dt, opt.dt);
-      if (h >= h_max - 1e-12 && last_motion_mm < until_mm) break;
+      const bool full_size = h >= h_max - 1e-12;
+      if (full_size && last_motion_mm < until_mm) break;
+      // A two-step cycle: the iterations stop short of the step's solution, alternately on
+      // either side of it, and the valve flips between two states instead of coming to rest.
+      if (full_size && have_two_before && iterations < opt.settle_newton_max_iterations &&
+          integrator.largest_motion(two_before, state) < 0.5 * last_motion_mm) {
+        iterations = std::min(2 * iterations, opt.settle_newton_max_iterations);
+        integrator.set_newton_iterations(iterations);
+        integrator.set_newton_motion_tolerance(kSettleCorrectionShare * until_mm);
+      }
+      have_two_before = full_size;
+      if (full_size) two_before = before;
       if (halvings == 0) h = std::min(2.0 * h, h_max);
     }
     return true;
@@ -338,6 +363,7 @@ SimulationRecord make_simulation_record(const ClosureResult& r, const ClosureOpt
                  {"crossings", s.crossings},
                  {"settle_steps", s.settle_steps},
                  {"settle_s", s.settle_s},
+                 {"settle_newton_iterations", s.settle_newton_iterations},
                  {"clip_phase_s", s.clip_phase_s},
                  {"clip_phase_retries", s.clip_phase_retries},
                  {"last_step_motion_mm", s.last_step_motion_mm},

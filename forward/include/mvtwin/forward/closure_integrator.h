@@ -122,6 +122,9 @@ class ClosureIntegrator {
   }
   /// Newton iterations per step from now on (the settling phase's own count).
   void set_newton_iterations(int n) { options_.newton_iterations = n; }
+  /// Newton iterations also stop once a correction moves no free node by more than this over
+  /// the step (h times the velocity update, mm; 0 = only newton_tolerance).
+  void set_newton_motion_tolerance(double mm) { newton_motion_tolerance_mm_ = mm; }
   /// The largest distance a free node moved between two states, mm.
   double largest_motion(const ValveState& before, const ValveState& after) const;
 
@@ -206,6 +209,7 @@ class ClosureIntegrator {
 
   const ClosureScene& scene_;
   ClosureOptions options_;
+  double newton_motion_tolerance_mm_ = 0.0;
   Terms terms_;
   ElasticBody body_;
   int n_ = 0, ndof_ = 0;

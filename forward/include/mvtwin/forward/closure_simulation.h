@@ -56,9 +56,14 @@ struct ClosureOptions {
   /// steps wandered instead of settling, docs/forward-status.md).
   double settle_max_dt = 0.08;
   double settle_max_s = 5.0;  ///< settling gives up (the valve still moving) after this, s
-  /// Newton iterations per settling step (up to newton_tolerance): with one, patient 4's large
-  /// steps still moved 0.32 mm each after 5 s; with 3 it stopped after 2 s (forward-status.md).
+  /// Newton iterations per settling step at its start (up to newton_tolerance): with one,
+  /// patient 4's large steps still moved 0.32 mm each after 5 s (forward-status.md).
   int settle_newton_iterations = 3;
+  /// Where settling's steps flip between two states (a full-size step moves some node by more
+  /// than twice what two steps together move it: the Newton iterations stop short of the step's
+  /// solution, each time on the other side), the iterations per step are doubled, up to this
+  /// (docs/forward-status.md, "Settling's two-step cycle"). = settle_newton_iterations: never.
+  int settle_newton_max_iterations = 12;
   /// The closed valve at rest by a static solve instead of settling: after the closure (and
   /// settling to static_start_mm), Newton iterations on the static equilibrium under the held
   /// peak pressure and boundary with the exact tangent, a line search on the energy's slope that
@@ -145,6 +150,9 @@ struct ClosureSummary {
   int crossings = 0;     ///< steps rejected by continuous collision detection (then halved)
   int settle_steps = 0;  ///< steps of the settling phase (included in steps)
   double settle_s = 0;   ///< simulated time of the settling phase, s
+  /// Newton iterations per settling step at its end: settle_newton_iterations, or more where
+  /// the steps flipped between two states (settle_newton_max_iterations).
+  int settle_newton_iterations = 0;
   /// Largest motion of a free node over the last step, mm (at rest: below settle_mm).
   double last_step_motion_mm = 0;
   int newton_iterations = 0;
