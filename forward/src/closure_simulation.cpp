@@ -251,18 +251,18 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
   // equilibrium. Returns false (the result finished as failed) when a step fails.
   auto settle = [&](double until_mm) {
     integrator.disable_friction();
-    int& iterations = settle_iterations;
-    iterations = std::max(iterations, opt.settle_newton_iterations);
-    integrator.set_newton_iterations(iterations);
+    // A second settling (after a failed static solve) keeps the count the first one raised.
+    settle_iterations = std::max(settle_iterations, opt.settle_newton_iterations);
+    integrator.set_newton_iterations(settle_iterations);
     // Once raised, as many as a step needs: until a correction moves no node by a quarter of
     // the motion that counts as rest.
-    if (iterations > opt.settle_newton_iterations)
+    if (settle_iterations > opt.settle_newton_iterations)
       integrator.set_newton_motion_tolerance(kSettleCorrectionShare * until_mm);
     double h = opt.dt;
     ValveState two_before;  // the state before the last full-size step, if the last was one
     bool have_two_before = false;
     while (settle_s < opt.settle_max_s - 1e-12) {
-      const ValveState before = state;
+      ValveState before = state;
       int halvings = 0;
       h = std::min(h, opt.settle_max_s - settle_s);
       if (const StepOutcome o = step_halving(T + settle_s, &h, &halvings); !o.ok()) {
@@ -282,14 +282,14 @@ ClosureResult simulate_once(const ClosureScene& scene, const ClosureOptions& opt
       if (full_size && last_motion_mm < until_mm) break;
       // A two-step cycle: the iterations stop short of the step's solution, alternately on
       // either side of it, and the valve flips between two states instead of coming to rest.
-      if (full_size && have_two_before && iterations < opt.settle_newton_max_iterations &&
+      if (full_size && have_two_before && settle_iterations < opt.settle_newton_max_iterations &&
           integrator.largest_motion(two_before, state) < 0.5 * last_motion_mm) {
-        iterations = std::min(2 * iterations, opt.settle_newton_max_iterations);
-        integrator.set_newton_iterations(iterations);
+        settle_iterations = std::min(2 * settle_iterations, opt.settle_newton_max_iterations);
+        integrator.set_newton_iterations(settle_iterations);
         integrator.set_newton_motion_tolerance(kSettleCorrectionShare * until_mm);
       }
       have_two_before = full_size;
-      if (full_size) two_before = before;
+      if (full_size) two_before = std::move(before);
       if (halvings == 0) h = std::min(2.0 * h, h_max);
     }
     return true;
